@@ -1,0 +1,849 @@
+#!/usr/bin/env python
+"""kfast benchmark harness: W1 (filter), W3 (log-likelihood), W7 (streaming).
+
+    python benches/bench_filter.py            # full run (~2-4 min on 2 cores)
+    python benches/bench_filter.py --quick    # smoke run (~30 s)
+    python benches/bench_filter.py --write    # full run, then rewrite the
+                                              # results block of BENCHMARKS.md
+
+Model "CV" (2-D constant velocity, n=4, m=2, dt=0.1, q=1, R=I, float64),
+data simulated from the model with a fixed seed.
+
+Contenders are timed interleaved (round-robin A B C A B C ...) and each
+reports the median ns/step over all its samples; ratios are kfast/peer from
+the same run, so < 1 means kfast is faster.  Peers that are not installed (or
+fail) are reported as such; the benchmark never raises.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import gc
+import importlib
+import importlib.metadata as _md
+import io
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import time
+import traceback
+import warnings
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+
+warnings.filterwarnings("ignore")
+
+# --------------------------------------------------------------------------
+# Model and data
+# --------------------------------------------------------------------------
+DT = 0.1
+SEED = 20240601
+
+
+def cv_model(dt: float = DT, q: float = 1.0):
+    F = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1, 0], [0, 0, 0, 1]], float)
+    H = np.array([[1, 0, 0, 0], [0, 1, 0, 0]], float)
+    Q = np.zeros((4, 4))
+    Q[0, 0] = Q[1, 1] = q * dt**3 / 3
+    Q[0, 2] = Q[2, 0] = Q[1, 3] = Q[3, 1] = q * dt**2 / 2
+    Q[2, 2] = Q[3, 3] = q * dt
+    R = np.eye(2)
+    x0 = np.array([1.0, -1.0, 0.5, 0.2])
+    P0 = np.diag([10.0, 10.0, 1.0, 1.0])
+    return F, H, Q, R, x0, P0
+
+
+def simulate(T: int, seed: int = SEED):
+    F, H, Q, R, x0, P0 = cv_model()
+    rng = np.random.default_rng(seed)
+    LQ, LR, LP = np.linalg.cholesky(Q), np.linalg.cholesky(R), np.linalg.cholesky(P0)
+    w = rng.standard_normal((T, 4)) @ LQ.T
+    v = rng.standard_normal((T, 2)) @ LR.T
+    x = x0 + LP @ rng.standard_normal(4)
+    y = np.empty((T, 2))
+    for t in range(T):
+        y[t] = H @ x + v[t]
+        x = F @ x + w[t]
+    return np.ascontiguousarray(y)
+
+
+# --------------------------------------------------------------------------
+# Timing machinery
+# --------------------------------------------------------------------------
+class Contender:
+    """One timed thing.  `fn()` runs the whole workload on `steps` steps."""
+
+    def __init__(self, name, fn, steps, note="", group="peer"):
+        self.name, self.fn, self.steps, self.note, self.group = name, fn, steps, note, group
+        self.samples: list[float] = []  # seconds per call
+        self.error: str | None = None
+        self.per_round = 1
+
+    @property
+    def ok(self):
+        return self.error is None and bool(self.samples)
+
+    def ns_per_step(self):
+        return statistics.median(self.samples) / self.steps * 1e9
+
+    def spread(self):
+        """(q25, q75) in ns/step."""
+        s = sorted(self.samples)
+        if len(s) < 4:
+            return (s[0] / self.steps * 1e9, s[-1] / self.steps * 1e9)
+        q = statistics.quantiles(s, n=4)
+        return (q[0] / self.steps * 1e9, q[2] / self.steps * 1e9)
+
+
+class Unavailable(Exception):
+    pass
+
+
+def _short_err(e: BaseException) -> str:
+    msg = f"{type(e).__name__}: {e}".strip().splitlines()[0]
+    return msg[:110]
+
+
+def time_once(fn) -> float:
+    gcold = gc.isenabled()
+    gc.disable()
+    try:
+        t0 = time.perf_counter()
+        fn()
+        return time.perf_counter() - t0
+    finally:
+        if gcold:
+            gc.enable()
+
+
+def run_interleaved(contenders, rounds, target_s=0.04, warmup=2, log=print):
+    """Warm up each contender, then `rounds` round-robin passes.
+
+    Within a round, a contender whose call takes < target_s is called several
+    times (each call is one sample) so fast contenders get more samples
+    without stretching the wall-clock time of slow ones."""
+    live = []
+    for c in contenders:
+        if c.error:
+            continue
+        try:
+            t = min(time_once(c.fn) for _ in range(warmup))
+            c.per_round = max(1, min(50, int(target_s / max(t, 1e-7))))
+            live.append(c)
+        except Exception as e:  # noqa: BLE001
+            c.error = "failed: " + _short_err(e)
+            log(f"    [{c.name}] {c.error}")
+    for _ in range(rounds):
+        for c in live:
+            if c.error:
+                continue
+            try:
+                for _ in range(c.per_round):
+                    c.samples.append(time_once(c.fn))
+            except Exception as e:  # noqa: BLE001
+                c.error = "failed: " + _short_err(e)
+
+
+# --------------------------------------------------------------------------
+# Contender factories.  Each returns a callable or raises Unavailable.
+# --------------------------------------------------------------------------
+def _import(name):
+    try:
+        return importlib.import_module(name)
+    except Exception as e:  # noqa: BLE001
+        raise Unavailable("not installed" if isinstance(e, ImportError) else _short_err(e))
+
+
+def version_of(dist):
+    try:
+        return _md.version(dist)
+    except Exception:  # noqa: BLE001
+        return None
+
+
+# ---- kfast -----------------------------------------------------------------
+def kfast_module():
+    kf = _import("kfast")
+    if not hasattr(kf, "LinearGaussian"):
+        raise Unavailable("kfast imported but has no LinearGaussian (extension not built?)")
+    return kf
+
+
+def kfast_version():
+    try:
+        kf = importlib.import_module("kfast")
+        return getattr(kf, "__version__", None) or version_of("kfast") or "?"
+    except Exception:  # noqa: BLE001
+        return None
+
+
+def mk_kfast_filter(y, form):
+    kf = kfast_module()
+    F, H, Q, R, x0, P0 = cv_model()
+    m = kf.LinearGaussian(F, H, Q, R)
+    return lambda: m.filter(y, x0, P0, form=form)
+
+
+def mk_kfast_loglik(y):
+    kf = kfast_module()
+    F, H, Q, R, x0, P0 = cv_model()
+    m = kf.LinearGaussian(F, H, Q, R)
+    return lambda: m.loglik(y, x0, P0)
+
+
+def mk_kfast_stream(y, read_x=False):
+    kf = kfast_module()
+    F, H, Q, R, x0, P0 = cv_model()
+    m = kf.LinearGaussian(F, H, Q, R)
+    rows = list(y)  # 1-D float64 arrays, made outside the timed loop
+
+    def run():
+        f = kf.KalmanFilter(m, x0, P0)
+        upd, pred = f.update, f.predict
+        if read_x:
+            for r in rows:
+                upd(r)
+                pred()
+                f.x
+        else:
+            for r in rows:
+                upd(r)
+                pred()
+        return f
+
+    return run
+
+
+# ---- statsmodels -------------------------------------------------------------
+def _sm_kf(y, **kw):
+    # NB: pass `tolerance` to the constructor.  In statsmodels 0.15.0
+    # KalmanFilter._filter() hands (filter_timing, tolerance) positionally to
+    # _initialize_filter(..., tolerance, filter_timing, ...), so a `tolerance=`
+    # given to filter()/loglike()/_filter() silently lands in filter_timing.
+    kfm = _import("statsmodels.tsa.statespace.kalman_filter")
+    F, H, Q, R, x0, P0 = cv_model()
+    kf = kfm.KalmanFilter(k_endog=2, k_states=4, k_posdef=4, **kw)
+    kf.bind(y.copy())
+    kf["design"] = H
+    kf["obs_cov"] = R
+    kf["transition"] = F
+    kf["selection"] = np.eye(4)
+    kf["state_cov"] = Q
+    kf.initialize_known(x0, P0)
+    return kfm, kf
+
+
+def mk_sm_filter_default(y):
+    _, kf = _sm_kf(y)
+
+    def run():
+        r = kf.filter()
+        return r.filtered_state, r.filtered_state_cov
+
+    return run
+
+
+# "tuned" = the fastest options found by measurement on this model (see
+# BENCHMARKS.md for the table):
+#  * filter_method=FILTER_UNIVARIATE (treats y_t one element at a time; exact
+#    here because R is diagonal) -- about 2x on its own;
+#  * stability_method=0 (no forced symmetrisation of P_pred) -- another ~15%;
+#  * conserve_memory: store only what the workload returns;
+#  * W1 calls the Cython filter via kf._filter() (skips building FilterResults).
+#  * The steady-state shortcut (tolerance=1e-19, on by default) is kept; the
+#    "no steady" rows switch it off (tolerance=0) to compare like with like,
+#    since kfast always runs the full recursion.
+def _sm_tuned_kf(y, steady_state=True):
+    kfm = _import("statsmodels.tsa.statespace.kalman_filter")
+    kw = dict(filter_method=kfm.FILTER_UNIVARIATE, stability_method=0)
+    if not steady_state:
+        kw["tolerance"] = 0.0
+    return _sm_kf(y, **kw)
+
+
+def _sm_filter_memory(kfm):
+    return (kfm.MEMORY_NO_FORECAST | kfm.MEMORY_NO_PREDICTED | kfm.MEMORY_NO_GAIN
+            | kfm.MEMORY_NO_SMOOTHING | kfm.MEMORY_NO_STD_FORECAST | kfm.MEMORY_NO_LIKELIHOOD)
+
+
+def mk_sm_filter_tuned(y, steady_state=True):
+    kfm, kf = _sm_tuned_kf(y, steady_state)
+    mem = _sm_filter_memory(kfm)
+
+    def run():
+        k = kf._filter(conserve_memory=mem)
+        # (n,T) / (n,n,T) Fortran-ordered arrays; transposed views are free.
+        return np.asarray(k.filtered_state).T, np.asarray(k.filtered_state_cov).transpose(2, 0, 1)
+
+    return run
+
+
+def mk_sm_loglik_default(y):
+    _, kf = _sm_kf(y)
+    return lambda: kf.loglike()
+
+
+def mk_sm_loglik_tuned(y, steady_state=True):
+    kfm, kf = _sm_tuned_kf(y, steady_state)
+    return lambda: kf.loglike(conserve_memory=kfm.MEMORY_CONSERVE)
+
+
+def sm_steady_state_info(y):
+    """Does statsmodels' default steady-state shortcut kick in on this data?"""
+    try:
+        kfm, kf = _sm_kf(y)
+        k = kf._filter(conserve_memory=kfm.MEMORY_CONSERVE)
+        conv = bool(k.converged)
+        per = int(k.period_converged) if conv else None
+        return conv, per
+    except Exception:  # noqa: BLE001
+        return None, None
+
+
+# ---- filterpy ---------------------------------------------------------------
+def _fp_kf():
+    fpk = _import("filterpy.kalman")
+    F, H, Q, R, x0, P0 = cv_model()
+    kf = fpk.KalmanFilter(dim_x=4, dim_z=2)
+    kf.F, kf.H, kf.Q, kf.R = F.copy(), H.copy(), Q.copy(), R.copy()
+    return kf, x0, P0
+
+
+def _fp_reset(kf, x0, P0):
+    # 1-D state: filterpy's batch_filter passes H explicitly to update(), which
+    # then skips reshaping z, so a (4,1) state with (2,) rows broadcasts wrongly.
+    kf.x = x0.copy()
+    kf.P = P0.copy()
+
+
+def mk_fp_filter(y):
+    kf, x0, P0 = _fp_kf()
+
+    def run():
+        _fp_reset(kf, x0, P0)
+        means, covs, _, _ = kf.batch_filter(y, update_first=True)
+        return means, covs
+
+    return run
+
+
+def mk_fp_loglik(y):
+    kf, x0, P0 = _fp_kf()
+    rows = list(y)
+
+    def run():
+        _fp_reset(kf, x0, P0)
+        ll = 0.0
+        for r in rows:
+            kf.update(r)
+            ll += kf.log_likelihood
+            kf.predict()
+        return ll
+
+    return run
+
+
+def mk_fp_stream(y):
+    kf, x0, P0 = _fp_kf()
+    rows = list(y)
+
+    def run():
+        _fp_reset(kf, x0, P0)
+        upd, pred = kf.update, kf.predict
+        for r in rows:
+            upd(r)
+            pred()
+        return kf
+
+    return run
+
+
+# ---- pykalman ---------------------------------------------------------------
+def _pk_kf():
+    pk = _import("pykalman")
+    F, H, Q, R, x0, P0 = cv_model()
+    return pk.KalmanFilter(transition_matrices=F, observation_matrices=H,
+                           transition_covariance=Q, observation_covariance=R,
+                           initial_state_mean=x0, initial_state_covariance=P0)
+
+
+def mk_pk_filter(y):
+    kf = _pk_kf()
+    return lambda: kf.filter(y)
+
+
+def mk_pk_loglik(y):
+    kf = _pk_kf()
+    return lambda: kf.loglikelihood(y)
+
+
+# ---- simdkalman -------------------------------------------------------------
+def _sk_kf():
+    sk = _import("simdkalman")
+    F, H, Q, R, x0, P0 = cv_model()
+    return sk.KalmanFilter(state_transition=F, process_noise=Q,
+                           observation_model=H, observation_noise=R), x0, P0
+
+
+def mk_sk_filter(y):
+    kf, x0, P0 = _sk_kf()
+    data = y[None]  # (1 series, T, m)
+
+    def run():
+        r = kf.compute(data, 0, initial_value=x0, initial_covariance=P0,
+                       smoothed=False, filtered=True, observations=False)
+        return r.filtered.states.mean, r.filtered.states.cov
+
+    return run
+
+
+def mk_sk_loglik(y):
+    kf, x0, P0 = _sk_kf()
+    data = y[None]
+
+    def run():
+        r = kf.compute(data, 0, initial_value=x0, initial_covariance=P0,
+                       smoothed=False, filtered=False, states=False,
+                       covariances=False, observations=False, log_likelihood=True)
+        # simdkalman leaves out the constant -T*m/2*log(2*pi); add it back
+        return float(np.asarray(r.log_likelihood).ravel()[0]) + const
+
+    const = -0.5 * y.shape[0] * y.shape[1] * np.log(2 * np.pi)
+
+    return run
+
+
+# ---- dynamax (JAX, CPU) -------------------------------------------------------
+_DYNAMAX = None
+
+
+def _dynamax():
+    global _DYNAMAX
+    if _DYNAMAX is None:
+        jax = _import("jax")
+        jax.config.update("jax_enable_x64", True)
+        inf = _import("dynamax.linear_gaussian_ssm.inference")
+        jnp = _import("jax.numpy")
+        F, H, Q, R, x0, P0 = cv_model()
+        params = inf.ParamsLGSSM(
+            initial=inf.ParamsLGSSMInitial(mean=jnp.asarray(x0), cov=jnp.asarray(P0)),
+            dynamics=inf.ParamsLGSSMDynamics(weights=jnp.asarray(F), bias=jnp.zeros(4),
+                                              input_weights=jnp.zeros((4, 0)), cov=jnp.asarray(Q)),
+            emissions=inf.ParamsLGSSMEmissions(weights=jnp.asarray(H), bias=jnp.zeros(2),
+                                                input_weights=jnp.zeros((2, 0)), cov=jnp.asarray(R)),
+        )
+        f_filter = jax.jit(lambda p, e: (lambda r: (r.filtered_means, r.filtered_covariances,
+                                                     r.marginal_loglik))(inf.lgssm_filter(p, e)))
+        f_ll = jax.jit(lambda p, e: inf.lgssm_filter(p, e).marginal_loglik)
+        _DYNAMAX = (jax, jnp, params, f_filter, f_ll)
+    return _DYNAMAX
+
+
+def mk_dx_filter(y):
+    jax, jnp, params, f_filter, _ = _dynamax()
+    e = jax.device_put(jnp.asarray(y))
+    return lambda: jax.block_until_ready(f_filter(params, e))
+
+
+def mk_dx_loglik(y):
+    jax, jnp, params, _, f_ll = _dynamax()
+    e = jax.device_put(jnp.asarray(y))
+    return lambda: jax.block_until_ready(f_ll(params, e))
+
+
+# ---- C loop -------------------------------------------------------------------
+_CLOOP = None
+
+
+def c_loop():
+    global _CLOOP
+    if _CLOOP is None:
+        from cloop import CLoop
+        try:
+            _CLOOP = CLoop.build()
+        except Exception as e:  # noqa: BLE001
+            _CLOOP = e
+    if isinstance(_CLOOP, Exception):
+        raise Unavailable("C build failed: " + _short_err(_CLOOP))
+    return _CLOOP
+
+
+def mk_c_filter(y, reuse=False):
+    c = c_loop()
+    args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
+    if reuse:
+        out = (np.empty((len(y), 4)), np.empty((len(y), 4, 4)))
+        return lambda: c.filter_prepared(args, out)
+    return lambda: c.filter_prepared(args)
+
+
+def mk_c_loglik(y):
+    c = c_loop()
+    args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
+    return lambda: c.loglik_prepared(args)
+
+
+# --------------------------------------------------------------------------
+# Correctness cross-checks (so the timing comparison is honest)
+# --------------------------------------------------------------------------
+def _extract_filter(name, out):
+    """Normalise a contender's W1 output to (x_filt (T,n), P_filt (T,n,n))."""
+    if hasattr(out, "x_filt"):
+        return np.asarray(out.x_filt), np.asarray(out.P_filt)
+    if name.startswith("filterpy"):
+        xf = np.asarray(out[0])
+        return (xf[..., 0] if xf.ndim == 3 else xf), np.asarray(out[1])
+    if name.startswith("C loop"):
+        return out[0], out[1]
+    if name.startswith("dynamax"):
+        return np.asarray(out[0]), np.asarray(out[1])
+    if name.startswith("simdkalman"):
+        return np.asarray(out[0])[0], np.asarray(out[1])[0]
+    if name.startswith("statsmodels") and "default" in name:
+        return np.asarray(out[0]).T, np.asarray(out[1]).transpose(2, 0, 1)
+    return np.asarray(out[0]), np.asarray(out[1])
+
+
+def _loglik_of(name, out):
+    if hasattr(out, "loglik"):
+        return float(out.loglik)
+    return float(out)
+
+
+def check_filter(contenders, y, log):
+    """Max |diff| of every W1 contender's x_filt / P_filt against the C loop."""
+    try:
+        c = c_loop()
+    except Unavailable as e:
+        log(f"  (no cross-check: {e})")
+        return {}
+    F, H, Q, R, x0, P0 = cv_model()
+    res = {}
+    refs = {}
+    for k in contenders:
+        if not k.ok or k.name.startswith("C loop"):
+            continue
+        T = k.steps
+        if T not in refs:
+            refs[T] = c.filter(F, H, Q, R, y[:T], x0, P0)
+        xr, Pr, _ = refs[T]
+        try:
+            xf, Pf = _extract_filter(k.name, k.fn())
+            dx = float(np.max(np.abs(xf - xr)))
+            dP = float(np.max(np.abs(Pf - Pr)))
+            res[k.name] = (dx, dP)
+            log(f"  {k.name:<36s} max|dx_filt| = {dx:.2e}   max|dP_filt| = {dP:.2e}   (T={T})")
+        except Exception as e:  # noqa: BLE001
+            log(f"  {k.name:<36s} check failed: {_short_err(e)}")
+    return res
+
+
+def check_loglik(contenders, y, log):
+    try:
+        c = c_loop()
+    except Unavailable as e:
+        log(f"  (no cross-check: {e})")
+        return {}
+    F, H, Q, R, x0, P0 = cv_model()
+    res = {}
+    for k in contenders:
+        if not k.ok:
+            continue
+        T = k.steps
+        ref = c.loglik(F, H, Q, R, y[:T], x0, P0)
+        if k.name.startswith("C loop"):
+            log(f"  {k.name:<36s} loglik = {ref:.10f}   (T={T})")
+            continue
+        try:
+            ll = _loglik_of(k.name, k.fn())
+            d = abs(ll - ref)
+            res[k.name] = d
+            log(f"  {k.name:<36s} |loglik - C| = {d:.2e}   (rel {d / abs(ref):.1e}, T={T})")
+        except Exception as e:  # noqa: BLE001
+            log(f"  {k.name:<36s} check failed: {_short_err(e)}")
+    return res
+
+
+# --------------------------------------------------------------------------
+# Reporting
+# --------------------------------------------------------------------------
+def fmt_ns(x):
+    if x >= 1e4:
+        return f"{x:,.0f}"
+    if x >= 100:
+        return f"{x:.0f}"
+    return f"{x:.1f}"
+
+
+def table(contenders, kfast_names, title, md=False):
+    """Rows: contender, T, ns/step, IQR, and kfast/this for each kfast variant."""
+    kref = {n: next((c for c in contenders if c.name == n and c.ok), None) for n in kfast_names}
+    head = ["contender", "T", "ns/step", "IQR (ns/step)"] + [f"{n}/this" for n in kfast_names] + ["note"]
+    rows = []
+    for c in contenders:
+        if c.ok:
+            lo, hi = c.spread()
+            r = [c.name, f"{c.steps:,}", fmt_ns(c.ns_per_step()), f"{fmt_ns(lo)}-{fmt_ns(hi)}"]
+            for n in kfast_names:
+                k = kref[n]
+                r.append(f"{k.ns_per_step() / c.ns_per_step():.3g}" if k else "n/a")
+        else:
+            r = [c.name, f"{c.steps:,}", "-", "-"] + ["n/a"] * len(kfast_names)
+        note = c.note
+        if not c.ok:
+            note = (c.error or "no samples") + ("; " + note if note else "")
+        r.append(note)
+        rows.append(r)
+    if md:
+        out = [f"#### {title}", "", "| " + " | ".join(head) + " |",
+               "|" + "|".join(["---"] + ["---:"] * (len(head) - 2) + ["---"]) + "|"]
+        out += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(out) + "\n"
+    w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    w[-1] = 0
+    line = lambda r: "  ".join(  # noqa: E731
+        (s.ljust(w[i]) if i in (0, len(r) - 1) else s.rjust(w[i])) for i, s in enumerate(r)).rstrip()
+    out = [title, line(head), line(["-" * x for x in w[:-1]] + [""])]
+    out += [line(r) for r in rows]
+    return "\n".join(out) + "\n"
+
+
+def machine_info():
+    info = {}
+    try:
+        txt = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=10).stdout
+        m = re.search(r"^Model name:\s*(.+)$", txt, re.M)
+        info["cpu"] = m.group(1).strip() if m else platform.processor() or "?"
+    except Exception:  # noqa: BLE001
+        info["cpu"] = platform.processor() or "?"
+    info["cores"] = os.cpu_count()
+    info["python"] = platform.python_version()
+    info["numpy"] = np.__version__
+    info["kfast"] = kfast_version() or "not installed"
+    info["platform"] = platform.platform()
+    try:
+        info["gcc"] = subprocess.run(["gcc", "-dumpfullversion"], capture_output=True,
+                                     text=True, timeout=10).stdout.strip() or "?"
+    except Exception:  # noqa: BLE001
+        info["gcc"] = "not found"
+    peers = {}
+    for d in ["statsmodels", "filterpy", "pykalman", "simdkalman", "dynamax", "jax", "scipy"]:
+        peers[d] = version_of(d) or "not installed"
+    info["peers"] = peers
+    return info
+
+
+# --------------------------------------------------------------------------
+# Main
+# --------------------------------------------------------------------------
+def build(spec, y_full, log):
+    """spec: list of (name, factory, T, note, group)."""
+    out = []
+    for name, factory, T, note, group in spec:
+        c = Contender(name, None, T, note, group)
+        try:
+            c.fn = factory(y_full[:T])
+        except Unavailable as e:
+            c.error = str(e)
+        except Exception as e:  # noqa: BLE001
+            c.error = "setup failed: " + _short_err(e)
+        if c.error:
+            log(f"    [{name}] {c.error}")
+        out.append(c)
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="short smoke run")
+    ap.add_argument("--write", action="store_true", help="rewrite the results block of BENCHMARKS.md")
+    ap.add_argument("--rounds", type=int, default=None, help="interleaved rounds per workload")
+    ap.add_argument("--only", default="W1,W3,W7", help="comma list of workloads")
+    args = ap.parse_args(argv)
+
+    buf = io.StringIO()
+
+    def log(s=""):
+        print(s, flush=True)
+        buf.write(s + "\n")
+
+    quick = args.quick
+    T = 20_000 if quick else 100_000
+    T_slow = 1_000 if quick else 5_000      # filterpy, pykalman, simdkalman (pure Python/NumPy per step)
+    T_stream_k = 5_000 if quick else 20_000  # kfast streaming, per sample
+    T_stream_p = 500 if quick else 2_000     # filterpy streaming, per sample
+    rounds = args.rounds or (3 if quick else 9)
+    todo = {w.strip().upper() for w in args.only.split(",")}
+
+    info = machine_info()
+    t_start = time.time()
+    log(f"kfast benchmark  {_dt.datetime.now().isoformat(timespec='seconds')}  "
+        f"{'(quick)' if quick else ''}")
+    log(f"machine: {info['cpu']}, {info['cores']} cores | python {info['python']} | "
+        f"numpy {info['numpy']} | kfast {info['kfast']} | gcc {info['gcc']}")
+    log("peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()))
+    log(f"model CV (n=4, m=2, dt={DT}, q=1, R=I), float64, seed {SEED}; T={T:,}; "
+        f"slow peers T={T_slow:,}; {rounds} interleaved rounds, medians")
+    y = simulate(T)
+
+    try:
+        c_loop()
+        log(f"C loop: {_CLOOP.cc_cmd} benches/c/kf_cv.c (N=4, M=2 compile-time)")
+    except Unavailable as e:
+        log(f"C loop: {e}")
+
+    if any(k in todo for k in ("W1", "W3")):
+        # pre-compile the JAX functions so that failures show up here
+        try:
+            _dynamax()
+        except Unavailable as e:
+            log(f"dynamax: {e}")
+        except Exception as e:  # noqa: BLE001
+            log(f"dynamax: setup failed: {_short_err(e)}")
+
+    ss_conv, ss_per = sm_steady_state_info(y)
+    if ss_conv is None:
+        sm_ss_note = ""
+    elif ss_conv:
+        sm_ss_note = f"steady-state shortcut ON (default), converged at t={ss_per}"
+    else:
+        sm_ss_note = "steady-state shortcut ON (default) but never triggered"
+    results = {}
+    slow = f"T={T_slow:,} (slow peer)"
+
+    # ---------------- W1: filter ----------------
+    if "W1" in todo:
+        log("\n== W1: filter -> x_filt (T,n) and P_filt (T,n,n) ==")
+        spec = [
+            ("kfast standard", lambda yy: mk_kfast_filter(yy, "standard"), T, "", "kfast"),
+            ("kfast joseph", lambda yy: mk_kfast_filter(yy, "joseph"), T, "", "kfast"),
+            ("C loop", mk_c_filter, T, "fresh output arrays each call", "c"),
+            ("C loop, reused out", lambda yy: mk_c_filter(yy, reuse=True), T,
+             "output buffers preallocated (no page faults)", "c"),
+            ("statsmodels tuned", mk_sm_filter_tuned, T, "univariate, no symmetrisation, _filter(), conserve_memory; " + sm_ss_note, "peer"),
+            ("statsmodels tuned, no steady", lambda yy: mk_sm_filter_tuned(yy, False), T,
+             "as tuned, tolerance=0 (full recursion like kfast)", "peer"),
+            ("statsmodels default", mk_sm_filter_default, T, "KalmanFilter.filter(); " + sm_ss_note, "peer"),
+            ("dynamax", mk_dx_filter, T, "jax.jit(lgssm_filter), CPU, x64", "peer"),
+            ("simdkalman", mk_sk_filter, T_slow, slow, "peer"),
+            ("filterpy", mk_fp_filter, T_slow, slow + "; batch_filter(update_first=True), Joseph", "peer"),
+            ("pykalman", mk_pk_filter, T_slow, slow, "peer"),
+        ]
+        cs = build(spec, y, log)
+        run_interleaved(cs, rounds, log=log)
+        log("")
+        log(table(cs, ["kfast standard", "kfast joseph"], "W1 results"))
+        log("cross-check vs C loop (same T):")
+        chk = check_filter(cs, y, log)
+        results["W1"] = (cs, ["kfast standard", "kfast joseph"], chk)
+
+    # ---------------- W3: loglik ----------------
+    if "W3" in todo:
+        log("\n== W3: total log-likelihood only ==")
+        spec = [
+            ("kfast loglik", mk_kfast_loglik, T, "LinearGaussian.loglik()", "kfast"),
+            ("C loop", mk_c_loglik, T, "", "c"),
+            ("statsmodels tuned", mk_sm_loglik_tuned, T, "univariate, no symmetrisation, loglike(conserve_memory=MEMORY_CONSERVE); " + sm_ss_note, "peer"),
+            ("statsmodels tuned, no steady", lambda yy: mk_sm_loglik_tuned(yy, False), T,
+             "as tuned, tolerance=0 (full recursion like kfast)", "peer"),
+            ("statsmodels default", mk_sm_loglik_default, T, "KalmanFilter.loglike(); " + sm_ss_note, "peer"),
+            ("dynamax", mk_dx_loglik, T, "jax.jit(lgssm_filter(...).marginal_loglik)", "peer"),
+            ("simdkalman", mk_sk_loglik, T_slow, slow + "; compute(log_likelihood=True); its loglik omits the -Tm/2 log 2pi constant (added back)", "peer"),
+            ("filterpy", mk_fp_loglik, T_slow, slow + "; update/predict loop + log_likelihood", "peer"),
+            ("pykalman", mk_pk_loglik, T_slow, slow + "; loglikelihood()", "peer"),
+        ]
+        cs = build(spec, y, log)
+        run_interleaved(cs, rounds, log=log)
+        log("")
+        log(table(cs, ["kfast loglik"], "W3 results"))
+        log("cross-check vs C loop (same T):")
+        chk = check_loglik(cs, y, log)
+        results["W3"] = (cs, ["kfast loglik"], chk)
+
+    # ---------------- W7: streaming ----------------
+    if "W7" in todo:
+        log("\n== W7: streaming, one update + one predict call per step from Python ==")
+        spec = [
+            ("kfast stream", mk_kfast_stream, T_stream_k, "KalmanFilter.update(y_t); .predict()", "kfast"),
+            ("kfast stream + read x", lambda yy: mk_kfast_stream(yy, True), T_stream_k,
+             "same, plus reading kf.x every step", "kfast"),
+            ("filterpy", mk_fp_stream, T_stream_p, f"T={T_stream_p:,}; update(z); predict()", "peer"),
+        ]
+        cs = build(spec, y, log)
+        run_interleaved(cs, rounds, log=log)
+        log("")
+        log(table(cs, ["kfast stream"], "W7 results"))
+        results["W7"] = (cs, ["kfast stream"], {})
+
+    elapsed = time.time() - t_start
+    log(f"\ntotal wall time {elapsed:.0f} s")
+
+    if args.write:
+        write_md(info, results, quick, T, T_slow, T_stream_k, T_stream_p, rounds, sm_ss_note, log)
+    return 0
+
+
+BEGIN = "<!-- BEGIN GENERATED RESULTS (benches/bench_filter.py --write) -->"
+END = "<!-- END GENERATED RESULTS -->"
+
+
+def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, log):
+    path = os.path.join(ROOT, "BENCHMARKS.md")
+    lines = [BEGIN, ""]
+    lines.append(f"Run: {_dt.date.today().isoformat()}{' (--quick)' if quick else ''}  ")
+    lines.append(f"Machine: {info['cpu']}, {info['cores']} cores, {info['platform']}  ")
+    lines.append(f"Python {info['python']}, NumPy {info['numpy']}, kfast {info['kfast']}, gcc {info['gcc']}  ")
+    lines.append("Peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()) + "  ")
+    lines.append(f"T = {T:,} (slow peers T = {T_slow:,}; streaming: kfast {T_sk:,}, filterpy {T_sp:,} "
+                 f"steps per sample); {rounds} interleaved rounds; medians; "
+                 "`X/this` < 1 means X is faster.")
+    lines.append("")
+    titles = {"W1": "W1: filter (x_filt, P_filt for every step)",
+              "W3": "W3: total log-likelihood",
+              "W7": "W7: streaming predict + update from Python"}
+    for w in ("W1", "W3", "W7"):
+        if w not in results:
+            continue
+        cs, knames, chk = results[w]
+        lines.append(table(cs, knames, titles[w], md=True))
+        if chk:
+            lines.append("Cross-check against the C loop (same data, same T):")
+            lines.append("")
+            for name, v in chk.items():
+                if isinstance(v, tuple):
+                    lines.append(f"- {name}: max|dx_filt| = {v[0]:.1e}, max|dP_filt| = {v[1]:.1e}")
+                else:
+                    lines.append(f"- {name}: |loglik - C| = {v:.1e}")
+            lines.append("")
+    lines.append(END)
+    block = "\n".join(lines)
+    try:
+        with open(path) as f:
+            old = f.read()
+    except FileNotFoundError:
+        old = "# Benchmarks\n\n"
+    if BEGIN in old and END in old:
+        new = old[: old.index(BEGIN)] + block + old[old.index(END) + len(END):]
+    else:
+        new = old.rstrip("\n") + "\n\n" + block + "\n"
+    with open(path, "w") as f:
+        f.write(new)
+    log(f"wrote results into {path}")
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except SystemExit:
+        raise
+    except BaseException:  # noqa: BLE001  -- a benchmark never fails; it prints
+        traceback.print_exc()
+        sys.exit(0)

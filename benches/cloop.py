@@ -1,0 +1,97 @@
+"""Build and load the plain C Kalman loop (benches/c/kf_cv.c) with ctypes.
+
+    from cloop import CLoop
+    c = CLoop.build()            # gcc -O3 -march=native -shared -fPIC into a temp dir
+    x_filt, P_filt, ll = c.filter(F, H, Q, R, y, x0, P0)
+    ll = c.loglik(F, H, Q, R, y, x0, P0)
+
+`CLoop.build()` raises RuntimeError (with the compiler's message) if gcc is
+missing or the build fails; the benchmark catches that and reports the C
+column as unavailable.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import subprocess
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SRC = os.path.join(HERE, "c", "kf_cv.c")
+
+_dp = ctypes.POINTER(ctypes.c_double)
+
+
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(_dp)
+
+
+def _c64(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+class CLoop:
+    def __init__(self, lib: ctypes.CDLL, cc_cmd: str, tmpdir: str):
+        self.lib = lib
+        self.cc_cmd = cc_cmd
+        self._tmpdir = tmpdir
+        self.n = lib.kf_cv_n()
+        self.m = lib.kf_cv_m()
+        args = [_dp, _dp, _dp, _dp, _dp, ctypes.c_long, _dp, _dp]
+        lib.kf_cv_filter.argtypes = args + [_dp, _dp]
+        lib.kf_cv_filter.restype = ctypes.c_double
+        lib.kf_cv_loglik.argtypes = args
+        lib.kf_cv_loglik.restype = ctypes.c_double
+
+    @classmethod
+    def build(cls, n: int = 4, m: int = 2, cc: str | None = None) -> "CLoop":
+        cc = cc or os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+        if not cc:
+            raise RuntimeError("no C compiler (gcc/cc) on PATH")
+        tmpdir = tempfile.mkdtemp(prefix="kfast_bench_c_")
+        so = os.path.join(tmpdir, "libkf_cv.so")
+        cmd = [cc, "-O3", "-march=native", "-shared", "-fPIC",
+               f"-DN={n}", f"-DM={m}", SRC, "-o", so, "-lm"]
+        try:
+            p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        except Exception as e:  # noqa: BLE001
+            raise RuntimeError(f"C build failed: {e}") from e
+        if p.returncode != 0:
+            raise RuntimeError("C build failed:\n" + " ".join(cmd) + "\n" + p.stderr)
+        lib = ctypes.CDLL(so)
+        return cls(lib, " ".join(os.path.basename(c) if c == cc else c for c in cmd[:5]), tmpdir)
+
+    def close(self):
+        shutil.rmtree(self._tmpdir, ignore_errors=True)
+
+    # --- calls -----------------------------------------------------------
+    def prepare(self, F, H, Q, R, y, x0, P0):
+        """Convert once to contiguous float64 so timing covers only the call."""
+        y = _c64(y)
+        assert y.ndim == 2 and y.shape[1] == self.m
+        return [_c64(F), _c64(H), _c64(Q), _c64(R), y, _c64(x0), _c64(P0)]
+
+    def filter_prepared(self, args, out=None):
+        F, H, Q, R, y, x0, P0 = args
+        T = y.shape[0]
+        if out is None:
+            out = (np.empty((T, self.n)), np.empty((T, self.n, self.n)))
+        xf, Pf = out
+        ll = self.lib.kf_cv_filter(_ptr(F), _ptr(H), _ptr(Q), _ptr(R), _ptr(y), T,
+                                   _ptr(x0), _ptr(P0), _ptr(xf), _ptr(Pf))
+        return xf, Pf, ll
+
+    def loglik_prepared(self, args):
+        F, H, Q, R, y, x0, P0 = args
+        return self.lib.kf_cv_loglik(_ptr(F), _ptr(H), _ptr(Q), _ptr(R), _ptr(y),
+                                     y.shape[0], _ptr(x0), _ptr(P0))
+
+    def filter(self, F, H, Q, R, y, x0, P0):
+        return self.filter_prepared(self.prepare(F, H, Q, R, y, x0, P0))
+
+    def loglik(self, F, H, Q, R, y, x0, P0):
+        return self.loglik_prepared(self.prepare(F, H, Q, R, y, x0, P0))

@@ -1,0 +1,27 @@
+"""kfast: Kalman filters, smoothers and Riccati solvers with a Rust core.
+
+Model and conventions (DESIGN.md §2)::
+
+    x[t+1] = F x[t] + B u[t] + w[t]      w ~ N(0, Q)
+    y[t]   = H x[t] + D u[t] + v[t]      v ~ N(0, R),  E[w[t] v[t]'] = N
+    prior  x[0] ~ N(x0, P0)              (x0, P0) is x(0|-1): the first step is an update
+
+>>> import kfast
+>>> m = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+>>> res = m.filter([0.3, -0.1, 0.7], x0=0.0, P0=1.0)
+>>> float(res.P_pred[1, 0, 0])  # Söderström ex. 6.17: P = 1 is the stationary solution
+1.0
+"""
+
+from kfast._kfast import InnovationCovarianceError, KalmanFilter, KfastError
+from kfast._model import FilterResult, LinearGaussian
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "LinearGaussian",
+    "FilterResult",
+    "KalmanFilter",
+    "KfastError",
+    "InnovationCovarianceError",
+]

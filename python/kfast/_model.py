@@ -1,0 +1,152 @@
+"""The linear Gaussian state-space model and its filter results (DESIGN.md §2-3)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from kfast import _kfast
+from kfast._arrays import as_float64, frozen_copy
+
+__all__ = ["LinearGaussian", "FilterResult"]
+
+_FORMS = ("joseph", "standard")
+
+
+@dataclass(frozen=True, repr=False)
+class FilterResult:
+    """What the Kalman filter computed over T steps (n states, m outputs).
+
+    Conventions: the prior (x0, P0) is x(0|-1), P(0|-1); row t of ``x_pred`` is x(t|t-1)
+    and of ``x_filt`` is x(t|t). Söderström Lemma 6.1, (6.22)-(6.27).
+    """
+
+    x_pred: np.ndarray
+    """x(t|t-1), shape (T, n)."""
+    P_pred: np.ndarray
+    """P(t|t-1), shape (T, n, n)."""
+    x_filt: np.ndarray
+    """x(t|t), shape (T, n)."""
+    P_filt: np.ndarray
+    """P(t|t), shape (T, n, n)."""
+    innov: np.ndarray
+    """Innovations e(t) = y(t) - H x(t|t-1) - D u(t), shape (T, m); NaN where y is missing."""
+    S: np.ndarray
+    """Innovation (one-step forecast error) covariance H P(t|t-1) H' + R of all m components,
+    shape (T, m, m), also where y is missing."""
+    K: np.ndarray
+    """Filter gain P(t|t-1) H' S^-1, shape (T, n, m): x(t|t) = x(t|t-1) + K e(t).
+    Columns of missing components are zero."""
+    K_pred: np.ndarray
+    """Predictor gain (F P(t|t-1) H' + N) S^-1, shape (T, n, m):
+    x(t+1|t) = F x(t|t-1) + B u(t) + K_pred e(t). (statsmodels' ``kalman_gain``.)"""
+    loglik: float
+    """Total log-likelihood sum_t log p(y(t) | y(0..t-1)) (Söderström (6.142))."""
+    loglik_t: np.ndarray
+    """Per-step log-likelihood terms, shape (T,); 0 where nothing is observed."""
+    x_next: np.ndarray
+    """x(T|T-1): the prediction one step past the data, shape (n,)."""
+    P_next: np.ndarray
+    """P(T|T-1), shape (n, n)."""
+
+    def __repr__(self) -> str:
+        T, n = self.x_filt.shape
+        m = self.innov.shape[1]
+        return f"FilterResult(T={T}, n={n}, m={m}, loglik={self.loglik:.6g})"
+
+
+class LinearGaussian:
+    """Linear Gaussian state-space model, validated once::
+
+        x[t+1] = F x[t] + B u[t] + w[t]      w ~ N(0, Q)   (Q: discrete-time covariance)
+        y[t]   = H x[t] + D u[t] + v[t]      v ~ N(0, R),  E[w[t] v[t]'] = N
+
+    Each matrix is constant, e.g. F of shape (n, n), or given per step with a leading axis T,
+    e.g. (T, n, n). Per-step matrices are indexed by the step they leave: F[t], B[t], Q[t],
+    N[t] take x[t] to x[t+1]; H[t], D[t], R[t] produce y[t]. A scalar is a 1 x 1 matrix.
+
+    Validation: all entries finite; Q and R symmetric positive semidefinite; the joint
+    covariance [[Q, N], [N', R]] positive semidefinite; shapes consistent. A failure raises
+    ``kfast.KfastError`` (a ValueError) naming the argument, the step and the problem.
+    The arguments are copied; the model's matrices are read-only attributes.
+    """
+
+    def __init__(self, F, H, Q, R, B=None, D=None, N=None):
+        given = {"F": F, "H": H, "Q": Q, "R": R, "B": B, "D": D, "N": N}
+        arrays = {k: (None if v is None else frozen_copy(k, v)) for k, v in given.items()}
+        self._core = _kfast.LinearGaussian(**arrays)
+        self.F: np.ndarray = arrays["F"]
+        self.H: np.ndarray = arrays["H"]
+        self.Q: np.ndarray = arrays["Q"]
+        self.R: np.ndarray = arrays["R"]
+        self.B: Optional[np.ndarray] = arrays["B"]
+        self.D: Optional[np.ndarray] = arrays["D"]
+        self.N: Optional[np.ndarray] = arrays["N"]
+
+    @property
+    def n_states(self) -> int:
+        """State dimension n."""
+        return self._core.n_states
+
+    @property
+    def n_obs(self) -> int:
+        """Output dimension m."""
+        return self._core.n_obs
+
+    @property
+    def n_inputs(self) -> int:
+        """Input dimension k (0 without B and D)."""
+        return self._core.n_inputs
+
+    @property
+    def steps(self) -> Optional[int]:
+        """T when some matrix is given per step (data must then have T steps), else None."""
+        return self._core.steps
+
+    def __repr__(self) -> str:
+        tv = "" if self.steps is None else f", steps={self.steps}"
+        return f"LinearGaussian(n_states={self.n_states}, n_obs={self.n_obs}, n_inputs={self.n_inputs}{tv})"
+
+    def filter(self, y, x0, P0, u=None, form: str = "joseph") -> FilterResult:
+        """Kalman filter over y, shape (T, m) (or (T,) when m = 1); NaN marks a missing value.
+
+        (x0, P0) is the prior x(0|-1), P(0|-1): the first operation is the update with y[0].
+        A whole missing row skips the update; a partly missing row updates with the observed
+        components only (their rows of H, D, R and columns of N). u, shape (T, k), is required
+        when the model has B or D; u[t] enters x[t+1] via B and y[t] via D.
+
+        form: "joseph" (default; (I-KH)P(I-KH)' + KRK', stays PSD) or "standard"
+        (P - K S K', symmetrized). Söderström Lemma 6.1 / (6.24).
+        """
+        args = self._data(y, x0, P0, u)
+        out = self._core.filter(*args, form=_form(form))
+        return FilterResult(**out)
+
+    def loglik(self, y, x0, P0, u=None, form: str = "joseph") -> float:
+        """The log-likelihood sum_t log N(y(t); H x(t|t-1) + D u(t), S(t)) alone (Söderström
+        (6.142)), computed without storing any per-step covariance. Same arguments as filter."""
+        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form))
+
+    def _data(self, y, x0, P0, u):
+        y = _column_if_1d(as_float64("y", y), self.n_obs)
+        x0 = as_float64("x0", x0)
+        P0 = as_float64("P0", P0)
+        if self.n_states == 1:
+            x0 = x0.reshape(1) if x0.size == 1 else x0
+            P0 = P0.reshape(1, 1) if P0.size == 1 else P0
+        if u is not None:
+            u = _column_if_1d(as_float64("u", u), self.n_inputs)
+        return y, x0, P0, u
+
+
+def _column_if_1d(a: np.ndarray, width: int) -> np.ndarray:
+    """A 1-D series of a scalar quantity as a (T, 1) column."""
+    return a[:, None] if a.ndim == 1 and width == 1 else a
+
+
+def _form(form: str) -> str:
+    if form not in _FORMS:
+        raise _kfast.KfastError(f"form: expected one of {_FORMS}, got {form!r}")
+    return form

@@ -1,0 +1,172 @@
+//! Small dense kernels on row-major slices.
+//!
+//! The filter's matrices are small (n ≤ 12 in most uses), so these are plain loops the compiler
+//! can unroll once the sizes are known; they never allocate. An `a[r×c]` in the docs is a slice
+//! of `r * c` numbers holding a row-major `r × c` matrix.
+
+/// `c[m×n] = a[m×k] · b[k×n]`.
+#[inline]
+pub(crate) fn mul(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
+    for i in 0..m {
+        let ci = &mut c[i * n..(i + 1) * n];
+        ci.fill(0.0);
+        for l in 0..k {
+            let ail = a[i * k + l];
+            let bl = &b[l * n..(l + 1) * n];
+            for (cij, blj) in ci.iter_mut().zip(bl) {
+                *cij += ail * blj;
+            }
+        }
+    }
+}
+
+/// `c[m×n] = a[m×k] · b[n×k]'`.
+#[inline]
+pub(crate) fn mul_bt(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
+    for i in 0..m {
+        let ai = &a[i * k..(i + 1) * k];
+        for j in 0..n {
+            let bj = &b[j * k..(j + 1) * k];
+            c[i * n + j] = ai.iter().zip(bj).map(|(x, y)| x * y).sum();
+        }
+    }
+}
+
+/// `y[m] = a[m×k] · x[k]`.
+#[inline]
+pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
+    for i in 0..m {
+        y[i] = a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum();
+    }
+}
+
+/// `y[m] += a[m×k] · x[k]`.
+#[inline]
+pub(crate) fn mul_vec_add(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
+    for i in 0..m {
+        y[i] += a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
+    }
+}
+
+/// `bt[c×r] = b[r×c]'`.
+#[inline]
+pub(crate) fn transpose(bt: &mut [f64], b: &[f64], r: usize, c: usize) {
+    for i in 0..r {
+        for j in 0..c {
+            bt[j * r + i] = b[i * c + j];
+        }
+    }
+}
+
+/// Replaces the square `a[n×n]` by `(a + a') / 2`.
+#[inline]
+pub(crate) fn symmetrize(a: &mut [f64], n: usize) {
+    for i in 0..n {
+        for j in 0..i {
+            let s = 0.5 * (a[i * n + j] + a[j * n + i]);
+            a[i * n + j] = s;
+            a[j * n + i] = s;
+        }
+    }
+}
+
+/// Cholesky factorization in place: on success the lower triangle of `a[n×n]` holds `L` with
+/// `a = L L'` (the strict upper triangle is left as it was). Returns the index of the first
+/// pivot that is not positive (or not finite) on failure.
+#[inline]
+pub(crate) fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for l in 0..j {
+            d -= a[j * n + l] * a[j * n + l];
+        }
+        // NaN fails `d > 0`.
+        let positive = d > 0.0 && d.is_finite();
+        if !positive {
+            return Err(j);
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for l in 0..j {
+                s -= a[i * n + l] * a[j * n + l];
+            }
+            a[i * n + j] = s / d;
+        }
+    }
+    Ok(())
+}
+
+/// Solves `L X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
+#[inline]
+pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+    for i in 0..n {
+        for j in 0..i {
+            let lij = l[i * n + j];
+            for c in 0..r {
+                b[i * r + c] -= lij * b[j * r + c];
+            }
+        }
+        let d = l[i * n + i];
+        for c in 0..r {
+            b[i * r + c] /= d;
+        }
+    }
+}
+
+/// Solves `L' X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
+#[inline]
+pub(crate) fn solve_lower_t(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+    for i in (0..n).rev() {
+        for j in i + 1..n {
+            let lji = l[j * n + i];
+            for c in 0..r {
+                b[i * r + c] -= lji * b[j * r + c];
+            }
+        }
+        let d = l[i * n + i];
+        for c in 0..r {
+            b[i * r + c] /= d;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves_a_spd_system() {
+        let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
+        let mut l = a;
+        cholesky(&mut l, 3).unwrap();
+        let mut x = [1.0, 2.0, 3.0];
+        solve_lower(&l, &mut x, 3, 1);
+        solve_lower_t(&l, &mut x, 3, 1);
+        let mut back = [0.0; 3];
+        mul_vec(&mut back, &a, &x, 3, 3);
+        for (b, want) in back.iter().zip([1.0, 2.0, 3.0]) {
+            assert!((b - want).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn cholesky_reports_the_failing_pivot() {
+        let mut a = [1.0, 1.0, 1.0, 1.0];
+        assert_eq!(cholesky(&mut a, 2), Err(1));
+    }
+
+    #[test]
+    fn products_agree() {
+        let a = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]; // 2×3
+        let mut at = [0.0; 6];
+        transpose(&mut at, &a, 2, 3);
+        let mut c1 = [0.0; 4];
+        let mut c2 = [0.0; 4];
+        mul(&mut c1, &a, &at, 2, 3, 2);
+        mul_bt(&mut c2, &a, &a, 2, 3, 2);
+        assert_eq!(c1, c2);
+        assert_eq!(c1, [14.0, 32.0, 32.0, 77.0]);
+    }
+}

@@ -1,0 +1,91 @@
+//! The one error type of the crate.
+//!
+//! Every public function returns `Result<_, Error>`. Each variant names the argument and,
+//! where there is one, the time step, so that a message reads like
+//! `Q at step 7: not positive semidefinite (smallest eigenvalue -0.25)`.
+
+use std::fmt;
+
+/// What went wrong, and where.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Error {
+    /// An argument has the wrong shape or a value it may not have (NaN, inf, asymmetry,
+    /// a covariance that is not positive semidefinite, ...).
+    InvalidArgument {
+        /// Name of the argument (`"F"`, `"y"`, `"x0"`, ...).
+        arg: &'static str,
+        /// Time step the problem was found at, for per-step arguments and data.
+        step: Option<usize>,
+        /// What was wrong.
+        problem: String,
+    },
+    /// The innovation covariance `S = H P H' + R` at a step is not positive definite, so the
+    /// measurement update cannot be computed (e.g. `R = 0` with `H P H'` singular).
+    InnovationCovariance {
+        /// Time step of the failed update.
+        step: usize,
+        /// Details.
+        problem: String,
+    },
+}
+
+impl Error {
+    /// An [`Error::InvalidArgument`] without a time step.
+    pub fn arg(arg: &'static str, problem: impl Into<String>) -> Self {
+        Error::InvalidArgument {
+            arg,
+            step: None,
+            problem: problem.into(),
+        }
+    }
+
+    /// An [`Error::InvalidArgument`] at time step `step`.
+    pub fn arg_at(arg: &'static str, step: usize, problem: impl Into<String>) -> Self {
+        Error::InvalidArgument {
+            arg,
+            step: Some(step),
+            problem: problem.into(),
+        }
+    }
+
+    /// The same error attached to time step `step` (used where per-step checks run on one
+    /// matrix of a stack).
+    pub(crate) fn at_step(self, t: Option<usize>) -> Self {
+        match self {
+            Error::InvalidArgument {
+                arg,
+                step: None,
+                problem,
+            } => Error::InvalidArgument { arg, step: t, problem },
+            other => other,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::InvalidArgument {
+                arg,
+                step: None,
+                problem,
+            } => write!(f, "{arg}: {problem}"),
+            Error::InvalidArgument {
+                arg,
+                step: Some(t),
+                problem,
+            } => {
+                write!(f, "{arg} at step {t}: {problem}")
+            }
+            Error::InnovationCovariance { step, problem } => write!(
+                f,
+                "innovation covariance S = H P H' + R at step {step} cannot be factorized: {problem}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Shorthand used throughout the crate.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,497 @@
+//! The Kalman filter over a whole series ([`filter`], [`loglik`]) and one step at a time
+//! ([`KalmanFilter`]).
+//!
+//! Conventions (DESIGN.md §2): the prior `(x0, P0)` is `x̂(0|−1), P(0|−1)`, so the first
+//! operation is the measurement update with `y[0]`. `y` is `(T, m)` row-major; NaN marks a
+//! missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
+//! The recursion is Söderström Lemma 6.1 / (6.24) (see [`step`] for the equations).
+
+mod step;
+
+use std::sync::Arc;
+
+pub use step::UpdateForm;
+use step::Workspace;
+
+use crate::error::{Error, Result};
+use crate::model::{check_psd, check_symmetric, LinearGaussian};
+
+/// A borrowed row-major `(steps, width)` array: the observations `y` or the inputs `u`.
+#[derive(Debug, Clone, Copy)]
+pub struct Series<'a> {
+    data: &'a [f64],
+    steps: usize,
+    width: usize,
+}
+
+impl<'a> Series<'a> {
+    /// Wraps `data` as `steps` rows of `width` numbers; `arg` names it in errors.
+    pub fn new(arg: &'static str, data: &'a [f64], steps: usize, width: usize) -> Result<Self> {
+        if data.len() != steps * width {
+            return Err(Error::arg(
+                arg,
+                format!("data length {} is not {steps} × {width}", data.len()),
+            ));
+        }
+        Ok(Series { data, steps, width })
+    }
+
+    /// Row `t`.
+    #[inline]
+    pub fn row(&self, t: usize) -> &'a [f64] {
+        &self.data[t * self.width..(t + 1) * self.width]
+    }
+
+    /// Number of rows (time steps).
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+}
+
+/// Everything the filter computes, row-major, for `T` steps, `n` states and `m` outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterResult {
+    /// `x̂(t|t−1)`, `(T, n)`.
+    pub x_pred: Vec<f64>,
+    /// `P(t|t−1)`, `(T, n, n)`.
+    pub p_pred: Vec<f64>,
+    /// `x̂(t|t)`, `(T, n)`.
+    pub x_filt: Vec<f64>,
+    /// `P(t|t)`, `(T, n, n)`.
+    pub p_filt: Vec<f64>,
+    /// Innovations `e(t) = y(t) − H x̂(t|t−1) − D u(t)`, `(T, m)`, NaN where `y` is missing.
+    pub innov: Vec<f64>,
+    /// Innovation (forecast error) covariance `S(t) = H P(t|t−1) H' + R` of all components,
+    /// `(T, m, m)`.
+    pub innovation_cov: Vec<f64>,
+    /// Filter gain `K(t) = P(t|t−1) H' S⁻¹`, `(T, n, m)`; zero columns for missing components.
+    pub gain: Vec<f64>,
+    /// Predictor gain `K_pred(t) = (F P(t|t−1) H' + N) S⁻¹`, `(T, n, m)`.
+    pub gain_pred: Vec<f64>,
+    /// Log-likelihood term of each step, `(T,)` (0 where nothing is observed).
+    pub loglik_t: Vec<f64>,
+    /// Total log-likelihood `Σ loglik_t` (Söderström (6.142)).
+    pub loglik: f64,
+    /// `x̂(T|T−1)`, the prediction past the last observation, `(n,)`.
+    pub x_next: Vec<f64>,
+    /// `P(T|T−1)`, `(n, n)`.
+    pub p_next: Vec<f64>,
+}
+
+/// Mutable output buffers for [`filter_into`], each of the size documented on [`FilterResult`].
+/// They are written in full.
+#[derive(Debug)]
+pub struct FilterOutputs<'a> {
+    pub x_pred: &'a mut [f64],
+    pub p_pred: &'a mut [f64],
+    pub x_filt: &'a mut [f64],
+    pub p_filt: &'a mut [f64],
+    pub innov: &'a mut [f64],
+    pub innovation_cov: &'a mut [f64],
+    pub gain: &'a mut [f64],
+    pub gain_pred: &'a mut [f64],
+    pub loglik_t: &'a mut [f64],
+    pub x_next: &'a mut [f64],
+    pub p_next: &'a mut [f64],
+}
+
+impl FilterResult {
+    fn zeros(steps: usize, n: usize, m: usize) -> Self {
+        let z = |len: usize| vec![0.0; len];
+        FilterResult {
+            x_pred: z(steps * n),
+            p_pred: z(steps * n * n),
+            x_filt: z(steps * n),
+            p_filt: z(steps * n * n),
+            innov: z(steps * m),
+            innovation_cov: z(steps * m * m),
+            gain: z(steps * n * m),
+            gain_pred: z(steps * n * m),
+            loglik_t: z(steps),
+            loglik: 0.0,
+            x_next: z(n),
+            p_next: z(n * n),
+        }
+    }
+
+    fn outputs(&mut self) -> FilterOutputs<'_> {
+        FilterOutputs {
+            x_pred: &mut self.x_pred,
+            p_pred: &mut self.p_pred,
+            x_filt: &mut self.x_filt,
+            p_filt: &mut self.p_filt,
+            innov: &mut self.innov,
+            innovation_cov: &mut self.innovation_cov,
+            gain: &mut self.gain,
+            gain_pred: &mut self.gain_pred,
+            loglik_t: &mut self.loglik_t,
+            x_next: &mut self.x_next,
+            p_next: &mut self.p_next,
+        }
+    }
+}
+
+/// Runs the Kalman filter over `y` from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`.
+pub fn filter(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    form: UpdateForm,
+) -> Result<FilterResult> {
+    let mut res = FilterResult::zeros(y.steps(), model.n_states(), model.n_obs());
+    res.loglik = filter_into(model, y, u, x0, p0, form, res.outputs())?;
+    Ok(res)
+}
+
+/// [`filter`] writing into caller-owned buffers (e.g. NumPy arrays); returns the total
+/// log-likelihood. Allocates only its workspace, once.
+pub fn filter_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    form: UpdateForm,
+    out: FilterOutputs<'_>,
+) -> Result<f64> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let steps = check_data(model, y, u, x0, p0)?;
+    check_outputs(&out, steps, n, m)?;
+    let mut ws = start(model, x0, p0);
+    let mut total = 0.0;
+    for t in 0..steps {
+        out.x_pred[t * n..(t + 1) * n].copy_from_slice(&ws.x_pred);
+        out.p_pred[t * n * n..(t + 1) * n * n].copy_from_slice(&ws.p_pred);
+        advance(model, &mut ws, y, u, form, t)?;
+        total += ws.loglik_t;
+        out.x_filt[t * n..(t + 1) * n].copy_from_slice(&ws.x_filt);
+        out.p_filt[t * n * n..(t + 1) * n * n].copy_from_slice(&ws.p_filt);
+        out.innov[t * m..(t + 1) * m].copy_from_slice(&ws.innov);
+        out.innovation_cov[t * m * m..(t + 1) * m * m].copy_from_slice(&ws.s_full);
+        out.gain[t * n * m..(t + 1) * n * m].copy_from_slice(&ws.gain);
+        out.gain_pred[t * n * m..(t + 1) * n * m].copy_from_slice(&ws.gain_pred);
+        out.loglik_t[t] = ws.loglik_t;
+    }
+    out.x_next.copy_from_slice(&ws.x_pred);
+    out.p_next.copy_from_slice(&ws.p_pred);
+    Ok(total)
+}
+
+/// The log-likelihood `Σ_t log p(y(t) | y(0..t−1))` alone (Söderström (6.142)), without
+/// storing any per-step output.
+pub fn loglik(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    form: UpdateForm,
+) -> Result<f64> {
+    let steps = check_data(model, y, u, x0, p0)?;
+    let mut ws = start(model, x0, p0);
+    let mut total = 0.0;
+    for t in 0..steps {
+        advance(model, &mut ws, y, u, form, t)?;
+        total += ws.loglik_t;
+    }
+    Ok(total)
+}
+
+fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
+    let mut ws = Workspace::new(model.n_states(), model.n_obs(), model.n_inputs());
+    ws.x_pred.copy_from_slice(x0);
+    ws.p_pred.copy_from_slice(p0);
+    crate::dense::symmetrize(&mut ws.p_pred, model.n_states());
+    ws
+}
+
+/// Update with `y[t]`, then the time update to `t + 1`.
+#[inline]
+fn advance(
+    model: &LinearGaussian,
+    ws: &mut Workspace,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    form: UpdateForm,
+    t: usize,
+) -> Result<()> {
+    let sys = model.at(t);
+    let u_t = u.map(|u| u.row(t));
+    ws.update(&sys, y.row(t), u_t, form, t)?;
+    ws.predict(&sys, u_t);
+    Ok(())
+}
+
+fn check_outputs(out: &FilterOutputs<'_>, steps: usize, n: usize, m: usize) -> Result<()> {
+    let sizes = [
+        ("x_pred", out.x_pred.len(), steps * n),
+        ("P_pred", out.p_pred.len(), steps * n * n),
+        ("x_filt", out.x_filt.len(), steps * n),
+        ("P_filt", out.p_filt.len(), steps * n * n),
+        ("innov", out.innov.len(), steps * m),
+        ("S", out.innovation_cov.len(), steps * m * m),
+        ("K", out.gain.len(), steps * n * m),
+        ("K_pred", out.gain_pred.len(), steps * n * m),
+        ("loglik_t", out.loglik_t.len(), steps),
+        ("x_next", out.x_next.len(), n),
+        ("P_next", out.p_next.len(), n * n),
+    ];
+    for (arg, got, want) in sizes {
+        if got != want {
+            return Err(Error::arg(
+                arg,
+                format!("output buffer has {got} entries, needs {want}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Validates data and prior against the model; returns T.
+pub(crate) fn check_data(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+) -> Result<usize> {
+    let (n, m, steps) = (model.n_states(), model.n_obs(), y.steps());
+    if y.width != m {
+        return Err(Error::arg(
+            "y",
+            format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width),
+        ));
+    }
+    if steps == 0 {
+        return Err(Error::arg("y", "has no time steps (T = 0)"));
+    }
+    if let Some(tm) = model.steps() {
+        if tm != steps {
+            return Err(Error::arg(
+                "y",
+                format!("has {steps} steps but the model's per-step matrices have {tm}"),
+            ));
+        }
+    }
+    for t in 0..steps {
+        check_observation(y.row(t), Some(t))?;
+    }
+    check_input_series(model, u, steps)?;
+    check_prior(n, x0, p0).map(|_| steps)
+}
+
+/// `y[t]` may hold NaN (missing) but not ±inf.
+fn check_observation(y: &[f64], step: Option<usize>) -> Result<()> {
+    if let Some(i) = y.iter().position(|v| v.is_infinite()) {
+        return Err(Error::arg(
+            "y",
+            format!("component {i} is {} (missing values are NaN, inf is not allowed)", y[i]),
+        )
+        .at_step(step));
+    }
+    Ok(())
+}
+
+fn check_input_series(model: &LinearGaussian, u: Option<Series<'_>>, steps: usize) -> Result<()> {
+    match u {
+        Some(u) => {
+            check_input_width(model, u.width)?;
+            if u.steps != steps {
+                return Err(Error::arg("u", format!("has {} steps but y has {steps}", u.steps)));
+            }
+            for t in 0..steps {
+                check_input_row(u.row(t), Some(t))?;
+            }
+            Ok(())
+        }
+        None if model.has_input() => Err(Error::arg(
+            "u",
+            format!(
+                "the model has B or D with k = {} inputs, so u of shape (T, {}) is required",
+                model.n_inputs(),
+                model.n_inputs()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+fn check_input_width(model: &LinearGaussian, width: usize) -> Result<()> {
+    let k = model.n_inputs();
+    if k == 0 {
+        return Err(Error::arg("u", "given, but the model has neither B nor D"));
+    }
+    if width != k {
+        return Err(Error::arg(
+            "u",
+            format!("expected {k} inputs per step (B/D have k = {k} columns), got {width}"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_input_row(u: &[f64], step: Option<usize>) -> Result<()> {
+    if let Some(v) = u.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("u", format!("contains a non-finite value ({v})")).at_step(step));
+    }
+    Ok(())
+}
+
+/// x0 has n finite entries; P0 is a finite symmetric PSD n × n matrix.
+fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
+    if x0.len() != n {
+        return Err(Error::arg(
+            "x0",
+            format!("expected {n} entries (the state size n), got {}", x0.len()),
+        ));
+    }
+    if let Some(v) = x0.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("x0", format!("contains a non-finite value ({v})")));
+    }
+    if p0.len() != n * n {
+        return Err(Error::arg(
+            "P0",
+            format!("expected an ({n}, {n}) matrix, got {} entries", p0.len()),
+        ));
+    }
+    if let Some(v) = p0.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("P0", format!("contains a non-finite value ({v})")));
+    }
+    check_symmetric(p0, n).map_err(|p| Error::arg("P0", p))?;
+    check_psd(p0, n).map_err(|p| Error::arg("P0", p))
+}
+
+/// The filter one step at a time, for streams: `update(y)` then `predict(u)`, or `step`.
+///
+/// The state starts as the prior `x̂(0|−1), P(0|−1)`. After `update` at step t, [`x`](Self::x)
+/// and [`p`](Self::p) are `x̂(t|t), P(t|t)`; after `predict` they are `x̂(t+1|t), P(t+1|t)` and
+/// the step counter advances. `predict` without an `update` treats the step as missing.
+/// Results equal [`filter`] on the same data.
+#[derive(Debug, Clone)]
+pub struct KalmanFilter {
+    model: Arc<LinearGaussian>,
+    ws: Workspace,
+    form: UpdateForm,
+    t: usize,
+    updated: bool,
+    loglik: f64,
+}
+
+impl KalmanFilter {
+    /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`.
+    pub fn new(model: Arc<LinearGaussian>, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
+        check_prior(model.n_states(), x0, p0)?;
+        let ws = start(&model, x0, p0);
+        Ok(KalmanFilter {
+            model,
+            ws,
+            form,
+            t: 0,
+            updated: false,
+            loglik: 0.0,
+        })
+    }
+
+    /// Measurement update with `y` (length m, NaN = missing); `u` is needed when the model has D.
+    pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        let m = self.model.n_obs();
+        if y.len() != m {
+            return Err(
+                Error::arg("y", format!("expected {m} values (m = {m}), got {}", y.len())).at_step(Some(self.t)),
+            );
+        }
+        check_observation(y, Some(self.t))?;
+        self.check_step_input(u)?;
+        if self.updated {
+            return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
+        }
+        let sys = self.model.at(self.t);
+        self.ws.update(&sys, y, u, self.form, self.t)?;
+        self.loglik += self.ws.loglik_t;
+        self.updated = true;
+        Ok(())
+    }
+
+    /// Time update to the next step; `u` is needed when the model has B.
+    pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
+        self.check_step_input(u)?;
+        if !self.updated {
+            self.ws.skip_update();
+        }
+        let sys = self.model.at(self.t);
+        self.ws.predict(&sys, u);
+        self.t += 1;
+        self.updated = false;
+        Ok(())
+    }
+
+    /// `update(y, u)` then `predict(u)`.
+    pub fn step(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        self.update(y, u)?;
+        self.predict(u)
+    }
+
+    fn check_step_input(&self, u: Option<&[f64]>) -> Result<()> {
+        if let Some(tm) = self.model.steps() {
+            if self.t >= tm {
+                return Err(Error::arg(
+                    "model",
+                    format!(
+                        "its per-step matrices cover {tm} steps; step {} is past the end",
+                        self.t
+                    ),
+                ));
+            }
+        }
+        match u {
+            Some(u) => {
+                check_input_width(&self.model, u.len())?;
+                check_input_row(u, Some(self.t))
+            }
+            None if self.model.has_input() => Err(Error::arg(
+                "u",
+                format!(
+                    "the model has B or D, so u with {} values is required",
+                    self.model.n_inputs()
+                ),
+            )
+            .at_step(Some(self.t))),
+            None => Ok(()),
+        }
+    }
+
+    /// Current state estimate: `x̂(t|t)` after an update, `x̂(t|t−1)` otherwise.
+    pub fn x(&self) -> &[f64] {
+        if self.updated {
+            &self.ws.x_filt
+        } else {
+            &self.ws.x_pred
+        }
+    }
+
+    /// Covariance of [`x`](Self::x).
+    pub fn p(&self) -> &[f64] {
+        if self.updated {
+            &self.ws.p_filt
+        } else {
+            &self.ws.p_pred
+        }
+    }
+
+    /// The current step t (number of predicts so far).
+    pub fn t(&self) -> usize {
+        self.t
+    }
+
+    /// Sum of the log-likelihood terms of the updates so far.
+    pub fn loglik(&self) -> f64 {
+        self.loglik
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Arc<LinearGaussian> {
+        &self.model
+    }
+}

@@ -1,0 +1,308 @@
+//! One step of the Kalman filter: the measurement update and the time update, on a workspace
+//! allocated once per sequence so that the time loop allocates nothing.
+//!
+//! Söderström Lemma 6.1, (6.22)–(6.27), written in kfast notation in ALGORITHMS.md §1.1:
+//!
+//! ```text
+//! e = y − H x̂(t|t−1) − D u            S = H P(t|t−1) H' + R
+//! K = P(t|t−1) H' S⁻¹                  x̂(t|t) = x̂(t|t−1) + K e
+//! P(t|t) = P − K S K'                   (standard, symmetrized)
+//!        = (I − K H) P (I − K H)' + K R K'    (Joseph form, valid for any gain)
+//! x̂(t+1|t) = F x̂(t|t) + B u + N S⁻¹ e
+//! P(t+1|t) = F P(t|t) F' + Q − N S⁻¹ N' − F K N' − N K' F'
+//! K_pred  = F K + N S⁻¹ = (F P H' + N) S⁻¹
+//! ```
+//!
+//! Missing data: only the observed components of y update (their rows of H, D, R and columns of
+//! N); a step with nothing observed skips the update and its time update has no N term.
+
+use crate::dense::{cholesky, mul, mul_bt, mul_vec, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose};
+use crate::error::{Error, Result};
+use crate::model::StepView;
+
+/// How the filtered covariance `P(t|t)` is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UpdateForm {
+    /// `(I − K H) P (I − K H)' + K R K'`: a sum of congruences, stays symmetric PSD under
+    /// rounding (ALGORITHMS.md §1.4). The default.
+    #[default]
+    Joseph,
+    /// `P − K S K'`, symmetrized: cheaper, can lose definiteness when S is ill-conditioned.
+    Standard,
+}
+
+const LN_2PI: f64 = 1.837_877_066_409_345_5;
+
+/// Buffers for one filter; sizes fixed by (n, m, k) at construction.
+#[derive(Debug, Clone)]
+pub(crate) struct Workspace {
+    pub n: usize,
+    pub m: usize,
+    pub k: usize,
+    /// x̂(t|t−1), P(t|t−1): the state before the update (and after the time update).
+    pub x_pred: Vec<f64>,
+    pub p_pred: Vec<f64>,
+    /// x̂(t|t), P(t|t).
+    pub x_filt: Vec<f64>,
+    pub p_filt: Vec<f64>,
+    /// Innovation of every component (NaN where missing), and the full S (m × m).
+    pub innov: Vec<f64>,
+    pub s_full: Vec<f64>,
+    /// Filter gain and predictor gain, n × m, zero columns for missing components.
+    pub gain: Vec<f64>,
+    pub gain_pred: Vec<f64>,
+    pub loglik_t: f64,
+    /// Components observed at this step, and how many (0 = no update).
+    obs: Vec<usize>,
+    m_obs: usize,
+    // Observed-block buffers (m_obs ≤ m): P H' (n × m_obs), Cholesky factor of S_o,
+    // H_o, R_o, N_o, K_o' (m_obs × n), e_o, S_o⁻¹ e_o.
+    pht_full: Vec<f64>,
+    pht: Vec<f64>,
+    chol: Vec<f64>,
+    h_o: Vec<f64>,
+    r_o: Vec<f64>,
+    n_o: Vec<f64>,
+    gain_t: Vec<f64>,
+    e_o: Vec<f64>,
+    s_inv_e: Vec<f64>,
+    // n × n and n × m scratch.
+    nn_a: Vec<f64>,
+    nn_b: Vec<f64>,
+    nm_a: Vec<f64>,
+    nm_b: Vec<f64>,
+    mn_a: Vec<f64>,
+}
+
+impl Workspace {
+    pub fn new(n: usize, m: usize, k: usize) -> Self {
+        let z = |len: usize| vec![0.0; len];
+        Workspace {
+            n,
+            m,
+            k,
+            x_pred: z(n),
+            p_pred: z(n * n),
+            x_filt: z(n),
+            p_filt: z(n * n),
+            innov: z(m),
+            s_full: z(m * m),
+            gain: z(n * m),
+            gain_pred: z(n * m),
+            loglik_t: 0.0,
+            obs: vec![0; m],
+            m_obs: 0,
+            pht_full: z(n * m),
+            pht: z(n * m),
+            chol: z(m * m),
+            h_o: z(m * n),
+            r_o: z(m * m),
+            n_o: z(n * m),
+            gain_t: z(m * n),
+            e_o: z(m),
+            s_inv_e: z(m),
+            nn_a: z(n * n),
+            nn_b: z(n * n),
+            nm_a: z(n * m),
+            nm_b: z(n * m),
+            mn_a: z(m * n),
+        }
+    }
+
+    /// Measurement update with `y` (NaN = missing), from (x_pred, p_pred) to (x_filt, p_filt).
+    pub fn update(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        let (n, m) = (self.n, self.m);
+        // Innovation of every component: e = y − H x − D u (NaN where y is missing).
+        mul_vec(&mut self.innov, sys.h, &self.x_pred, m, n);
+        if let (Some(d), Some(u)) = (sys.d, u) {
+            mul_vec_add(&mut self.innov, d, u, m, self.k);
+        }
+        for (e, yi) in self.innov.iter_mut().zip(y) {
+            *e = yi - *e;
+        }
+        // S = H P H' + R for all components: the forecast error covariance of y(t).
+        mul_bt(&mut self.pht_full, &self.p_pred, sys.h, n, n, m);
+        mul(&mut self.s_full, sys.h, &self.pht_full, m, n, m);
+        for (s, r) in self.s_full.iter_mut().zip(sys.r) {
+            *s += r;
+        }
+        symmetrize(&mut self.s_full, m);
+
+        self.m_obs = 0;
+        for (i, yi) in y.iter().enumerate() {
+            if !yi.is_nan() {
+                self.obs[self.m_obs] = i;
+                self.m_obs += 1;
+            }
+        }
+        self.gain.fill(0.0);
+        if self.m_obs == 0 {
+            self.x_filt.copy_from_slice(&self.x_pred);
+            self.p_filt.copy_from_slice(&self.p_pred);
+            self.loglik_t = 0.0;
+            return Ok(());
+        }
+        self.gather_observed(sys);
+        let mo = self.m_obs;
+
+        cholesky(&mut self.chol[..mo * mo], mo).map_err(|j| Error::InnovationCovariance {
+            step: t,
+            problem: format!(
+                "not positive definite (pivot {j} of the {mo} observed components fails); \
+                 R may be singular where H P H' is too"
+            ),
+        })?;
+        let chol = &self.chol[..mo * mo];
+        let log_det: f64 = (0..mo).map(|i| 2.0 * chol[i * mo + i].ln()).sum();
+        // w = L⁻¹ e gives e' S⁻¹ e = ‖w‖²; then L'⁻¹ w = S⁻¹ e.
+        let s_inv_e = &mut self.s_inv_e[..mo];
+        s_inv_e.copy_from_slice(&self.e_o[..mo]);
+        solve_lower(chol, s_inv_e, mo, 1);
+        let quad: f64 = s_inv_e.iter().map(|w| w * w).sum();
+        solve_lower_t(chol, s_inv_e, mo, 1);
+        self.loglik_t = -0.5 * (mo as f64 * LN_2PI + log_det + quad);
+
+        // K' = S⁻¹ (P H')' by two triangular solves (never S⁻¹ itself).
+        let pht = &self.pht[..n * mo];
+        let gain_t = &mut self.gain_t[..mo * n];
+        transpose(gain_t, pht, n, mo);
+        solve_lower(chol, gain_t, mo, n);
+        solve_lower_t(chol, gain_t, mo, n);
+
+        // x̂(t|t) = x̂(t|t−1) + P H' S⁻¹ e
+        self.x_filt.copy_from_slice(&self.x_pred);
+        mul_vec_add(&mut self.x_filt, pht, s_inv_e, n, mo);
+
+        match form {
+            UpdateForm::Standard => {
+                // P − K S K' = P − (P H') K'
+                mul(&mut self.nn_a, pht, gain_t, n, mo, n);
+                for ((pf, p), ksk) in self.p_filt.iter_mut().zip(&self.p_pred).zip(&self.nn_a) {
+                    *pf = p - ksk;
+                }
+            }
+            UpdateForm::Joseph => {
+                // A = I − K H_o;  P(t|t) = A P A' + K R_o K'
+                let kgain = &mut self.nm_a[..n * mo];
+                transpose(kgain, gain_t, mo, n);
+                mul(&mut self.nn_a, kgain, &self.h_o[..mo * n], n, mo, n);
+                for v in self.nn_a.iter_mut() {
+                    *v = -*v;
+                }
+                for i in 0..n {
+                    self.nn_a[i * n + i] += 1.0;
+                }
+                mul(&mut self.nn_b, &self.nn_a, &self.p_pred, n, n, n);
+                mul_bt(&mut self.p_filt, &self.nn_b, &self.nn_a, n, n, n);
+                // K R_o K' = K (R_o K') with R_o K' = r_o · gain_t (mo × n)
+                mul(&mut self.mn_a[..mo * n], &self.r_o[..mo * mo], gain_t, mo, mo, n);
+                mul(&mut self.nn_b, kgain, &self.mn_a[..mo * n], n, mo, n);
+                for (pf, krk) in self.p_filt.iter_mut().zip(&self.nn_b) {
+                    *pf += krk;
+                }
+            }
+        }
+        symmetrize(&mut self.p_filt, n);
+        for (j, &i) in self.obs[..mo].iter().enumerate() {
+            for r in 0..n {
+                self.gain[r * m + i] = gain_t[j * n + r];
+            }
+        }
+        Ok(())
+    }
+
+    /// Copies the observed components' blocks (all of them when nothing is missing).
+    fn gather_observed(&mut self, sys: &StepView<'_>) {
+        let (n, m, mo) = (self.n, self.m, self.m_obs);
+        let obs = &self.obs[..mo];
+        for (a, &i) in obs.iter().enumerate() {
+            self.e_o[a] = self.innov[i];
+            self.h_o[a * n..(a + 1) * n].copy_from_slice(&sys.h[i * n..(i + 1) * n]);
+            for (b, &j) in obs.iter().enumerate() {
+                self.chol[a * mo + b] = self.s_full[i * m + j];
+                self.r_o[a * mo + b] = sys.r[i * m + j];
+            }
+        }
+        for r in 0..n {
+            for (a, &i) in obs.iter().enumerate() {
+                self.pht[r * mo + a] = self.pht_full[r * m + i];
+                if let Some(nn) = sys.n {
+                    self.n_o[r * mo + a] = nn[r * m + i];
+                }
+            }
+        }
+    }
+
+    /// Skips the measurement update (nothing observed, as for an all-NaN y).
+    pub fn skip_update(&mut self) {
+        self.m_obs = 0;
+        self.innov.fill(f64::NAN);
+        self.gain.fill(0.0);
+        self.loglik_t = 0.0;
+        self.x_filt.copy_from_slice(&self.x_pred);
+        self.p_filt.copy_from_slice(&self.p_pred);
+    }
+
+    /// Time update from (x_filt, p_filt) to the next (x_pred, p_pred), and the predictor gain
+    /// `K_pred = F K + N S⁻¹` of the update just made.
+    pub fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
+        let (n, m, mo) = (self.n, self.m, self.m_obs);
+        mul_vec(&mut self.x_pred, sys.f, &self.x_filt, n, n);
+        if let (Some(b), Some(u)) = (sys.b, u) {
+            mul_vec_add(&mut self.x_pred, b, u, n, self.k);
+        }
+        mul(&mut self.nn_a, sys.f, &self.p_filt, n, n, n);
+        mul_bt(&mut self.p_pred, &self.nn_a, sys.f, n, n, n);
+        for (p, q) in self.p_pred.iter_mut().zip(sys.q) {
+            *p += q;
+        }
+        self.gain_pred.fill(0.0);
+        if mo > 0 {
+            // F K (n × mo), with K = gain_t'.
+            let kgain = &mut self.nm_a[..n * mo];
+            transpose(kgain, &self.gain_t[..mo * n], mo, n);
+            let fk = &mut self.nm_b[..n * mo];
+            mul(fk, sys.f, kgain, n, n, mo);
+            if sys.n.is_some() {
+                let n_o = &self.n_o[..n * mo];
+                // x̂(t+1|t) += N S⁻¹ e
+                mul_vec_add(&mut self.x_pred, n_o, &self.s_inv_e[..mo], n, mo);
+                // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
+                let g_t = &mut self.mn_a[..mo * n];
+                transpose(g_t, n_o, n, mo);
+                let chol = &self.chol[..mo * mo];
+                solve_lower(chol, g_t, mo, n);
+                solve_lower_t(chol, g_t, mo, n);
+                // P(t+1|t) −= K_pred N' + N (F K)'
+                for r in 0..n {
+                    for c in 0..n {
+                        let mut acc = 0.0;
+                        for a in 0..mo {
+                            let kp = fk[r * mo + a] + g_t[a * n + r];
+                            acc += kp * n_o[c * mo + a] + n_o[r * mo + a] * fk[c * mo + a];
+                        }
+                        self.p_pred[r * n + c] -= acc;
+                    }
+                }
+                for r in 0..n {
+                    for a in 0..mo {
+                        fk[r * mo + a] += g_t[a * n + r];
+                    }
+                }
+            }
+            for (a, &i) in self.obs[..mo].iter().enumerate() {
+                for r in 0..n {
+                    self.gain_pred[r * m + i] = fk[r * mo + a];
+                }
+            }
+        }
+        symmetrize(&mut self.p_pred, n);
+    }
+}

@@ -1,0 +1,39 @@
+//! # kfast
+//!
+//! Kalman filtering for linear Gaussian state-space models, with a Rust core and a Python face.
+//!
+//! ```text
+//! x[t+1] = F x[t] + B u[t] + w[t]        w ~ N(0, Q)
+//! y[t]   = H x[t] + D u[t] + v[t]        v ~ N(0, R),   E[w[t] v[t]'] = N
+//! prior:  x[0] ~ N(x0, P0)               (x0, P0) is x̂(0|−1): the first step is an update
+//! ```
+//!
+//! The Rust API in one screen:
+//!
+//! - [`StepMatrix`], [`Matrices`] and [`LinearGaussian`]: the model, each matrix constant or
+//!   given per step, validated once by [`LinearGaussian::new`].
+//! - [`filter`] / [`filter_into`] → [`FilterResult`]: the whole series; [`loglik`]: the
+//!   likelihood alone. [`Series`] wraps the row-major `(T, m)` data and `(T, k)` inputs.
+//! - [`KalmanFilter`]: the same filter one step at a time for streams.
+//! - [`UpdateForm`]: Joseph (default) or standard covariance update.
+//! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
+//!
+//! ```
+//! use kfast::{filter, LinearGaussian, Matrices, Series, StepMatrix, UpdateForm};
+//! let c = |v: f64| StepMatrix::constant(1, 1, vec![v]).unwrap();
+//! let model = LinearGaussian::new(Matrices::new(c(0.8), c(1.0), c(0.68), c(1.0))).unwrap();
+//! let y = [0.3, -0.1, 0.7];
+//! let res = filter(&model, Series::new("y", &y, 3, 1).unwrap(), None, &[0.0], &[1.0], UpdateForm::Joseph).unwrap();
+//! assert!((res.p_pred[0] - 1.0).abs() < 1e-12); // Söderström ex. 6.17: P = 1 is stationary
+//! ```
+
+mod dense;
+pub mod error;
+pub mod filter;
+pub mod model;
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::{Error, Result};
+pub use filter::{filter, filter_into, loglik, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm};
+pub use model::{LinearGaussian, Matrices, StepMatrix};
