@@ -403,7 +403,7 @@ impl KalmanFilter {
             );
         }
         check_observation(y, Some(self.t))?;
-        self.check_step_input(u)?;
+        self.check_step_input(u, "D", self.model.matrices().d.is_some())?;
         if self.updated {
             return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
         }
@@ -416,7 +416,7 @@ impl KalmanFilter {
 
     /// Time update to the next step; `u` is needed when the model has B.
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
-        self.check_step_input(u)?;
+        self.check_step_input(u, "B", self.model.matrices().b.is_some())?;
         if !self.updated {
             self.ws.skip_update();
         }
@@ -433,7 +433,9 @@ impl KalmanFilter {
         self.predict(u)
     }
 
-    fn check_step_input(&self, u: Option<&[f64]>) -> Result<()> {
+    /// Checks the step is within a per-step model and `u`; `u` is required when the matrix
+    /// `needs` (D for the update, B for the time update) is in the model.
+    fn check_step_input(&self, u: Option<&[f64]>, needs: &str, required: bool) -> Result<()> {
         if let Some(tm) = self.model.steps() {
             if self.t >= tm {
                 return Err(Error::arg(
@@ -450,10 +452,10 @@ impl KalmanFilter {
                 check_input_width(&self.model, u.len())?;
                 check_input_row(u, Some(self.t))
             }
-            None if self.model.has_input() => Err(Error::arg(
+            None if required => Err(Error::arg(
                 "u",
                 format!(
-                    "the model has B or D, so u with {} values is required",
+                    "the model has {needs}, so u with {} values is required",
                     self.model.n_inputs()
                 ),
             )

@@ -59,6 +59,23 @@ fn data<'a>(arg: &str, arr: &'a PyReadonlyArrayDyn<'_, f64>, ndim: usize) -> PyR
         .map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
 }
 
+/// The prior `x0` (1-D) and `P0` (2-D, n × n) as float64 slices.
+fn prior<'a>(
+    x0: &'a PyReadonlyArrayDyn<'_, f64>,
+    p0: &'a PyReadonlyArrayDyn<'_, f64>,
+    n: usize,
+) -> PyResult<(&'a [f64], &'a [f64])> {
+    let x0 = data("x0", x0, 1)?;
+    let p0s = data("P0", p0, 2)?;
+    if p0.shape() != [n, n] {
+        return Err(KfastError::new_err(format!(
+            "P0: expected a square ({n}, {n}) matrix (n = {n} states), got shape {:?}",
+            p0.shape()
+        )));
+    }
+    Ok((x0, p0s))
+}
+
 fn parse_form(form: &str) -> PyResult<UpdateForm> {
     match form {
         "joseph" => Ok(UpdateForm::Joseph),
@@ -150,7 +167,7 @@ impl PyLinearGaussian {
     ) -> PyResult<Bound<'py, PyDict>> {
         let form = parse_form(form)?;
         let (y, u) = series(&y, u.as_ref())?;
-        let (x0, p0) = (data("x0", &x0, 1)?, data("P0", &P0, 2)?);
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
         let zeros = |dims: &[usize]| PyArrayDyn::<f64>::zeros(py, IxDyn(dims), false);
         let names = [
@@ -217,7 +234,7 @@ impl PyLinearGaussian {
     ) -> PyResult<f64> {
         let form = parse_form(form)?;
         let (y, u) = series(&y, u.as_ref())?;
-        let (x0, p0) = (data("x0", &x0, 1)?, data("P0", &P0, 2)?);
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let model = &*self.inner;
         Ok(py.detach(|| filter::loglik(model, y, u, x0, p0, form))?)
     }
@@ -291,7 +308,7 @@ impl PyKalmanFilter {
         let n = core.get().inner.n_states();
         let x0 = as_float64(py, "x0", x0)?;
         let p0 = as_float64(py, "P0", P0)?;
-        let x0 = if n == 1 {
+        let x0 = if n == 1 && x0.len() == 1 {
             x0.reshape(IxDyn(&[1]))?.cast_into::<PyArrayDyn<f64>>()?
         } else {
             x0
@@ -302,12 +319,8 @@ impl PyKalmanFilter {
             p0
         };
         let (x0, p0) = (x0.readonly(), p0.readonly());
-        let inner = filter::KalmanFilter::new(
-            core.get().inner.clone(),
-            data("x0", &x0, 1)?,
-            data("P0", &p0, 2)?,
-            parse_form(form)?,
-        )?;
+        let (x0, p0) = prior(&x0, &p0, n)?;
+        let inner = filter::KalmanFilter::new(core.get().inner.clone(), x0, p0, parse_form(form)?)?;
         Ok(PyKalmanFilter { inner })
     }
 

@@ -1,0 +1,5 @@
+import sys
+
+from kfast.cli import main
+
+sys.exit(main())

@@ -1,0 +1,70 @@
+"""Type stubs for the compiled module kfast._kfast (rust/src/python)."""
+
+from typing import Any, Optional
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+class KfastError(ValueError):
+    """Invalid input to kfast (a ValueError): the message names the argument, step and problem."""
+
+class InnovationCovarianceError(KfastError):
+    """The innovation covariance S = H P H' + R at some step cannot be factorized."""
+
+class LinearGaussian:
+    """The compiled model; use kfast.LinearGaussian, which converts and keeps the arrays."""
+
+    def __init__(
+        self,
+        F: NDArray[np.float64],
+        H: NDArray[np.float64],
+        Q: NDArray[np.float64],
+        R: NDArray[np.float64],
+        B: Optional[NDArray[np.float64]] = None,
+        D: Optional[NDArray[np.float64]] = None,
+        N: Optional[NDArray[np.float64]] = None,
+    ) -> None: ...
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_obs(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+    @property
+    def steps(self) -> Optional[int]: ...
+    def filter(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+        form: str = "joseph",
+    ) -> dict[str, Any]: ...
+    def loglik(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+        form: str = "joseph",
+    ) -> float: ...
+
+class KalmanFilter:
+    """Streaming Kalman filter from the prior (x0, P0) = x(0|-1), P(0|-1).
+
+    After update at step t, x and P are x(t|t), P(t|t); after predict they are x(t+1|t),
+    P(t+1|t). A predict without an update treats the step as missing.
+    """
+
+    def __init__(self, model: Any, x0: ArrayLike, P0: ArrayLike, form: str = "joseph") -> None: ...
+    def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    def predict(self, u: Optional[ArrayLike] = None) -> None: ...
+    def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    @property
+    def x(self) -> NDArray[np.float64]: ...
+    @property
+    def P(self) -> NDArray[np.float64]: ...
+    @property
+    def t(self) -> int: ...
+    @property
+    def loglik(self) -> float: ...
