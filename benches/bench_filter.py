@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """kfast benchmark harness: W1 (filter), W3 (log-likelihood), W7 (streaming).
 
-    python benches/bench_filter.py            # full run (~2-4 min on 2 cores)
-    python benches/bench_filter.py --quick    # smoke run (~30 s)
+    python benches/bench_filter.py            # full run (~45-60 s on 2 cores)
+    python benches/bench_filter.py --quick    # smoke run (~10-15 s)
     python benches/bench_filter.py --write    # full run, then rewrite the
                                               # results block of BENCHMARKS.md
 
@@ -33,7 +33,13 @@ import time
 import traceback
 import warnings
 
-import numpy as np
+# Single-threaded BLAS: no contender does a matrix product big enough for
+# OpenBLAS to thread (n = 4), but idle OpenBLAS worker threads spin after the
+# data simulation and steal the second of our 2 cores.  Set before numpy loads.
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import numpy as np  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -159,7 +165,9 @@ def _import(name):
     try:
         return importlib.import_module(name)
     except Exception as e:  # noqa: BLE001
-        raise Unavailable("not installed" if isinstance(e, ImportError) else _short_err(e))
+        if isinstance(e, ModuleNotFoundError) and e.name == name.split(".")[0]:
+            raise Unavailable("not installed")
+        raise Unavailable("import failed: " + _short_err(e))
 
 
 def version_of(dist):
@@ -192,11 +200,13 @@ def mk_kfast_filter(y, form):
     return lambda: m.filter(y, x0, P0, form=form)
 
 
-def mk_kfast_loglik(y):
+def mk_kfast_loglik(y, form=None):
     kf = kfast_module()
     F, H, Q, R, x0, P0 = cv_model()
     m = kf.LinearGaussian(F, H, Q, R)
-    return lambda: m.loglik(y, x0, P0)
+    if form is None:
+        return lambda: m.loglik(y, x0, P0)
+    return lambda: m.loglik(y, x0, P0, form=form)
 
 
 def mk_kfast_stream(y, read_x=False):
@@ -296,10 +306,10 @@ def mk_sm_loglik_tuned(y, steady_state=True):
     return lambda: kf.loglike(conserve_memory=kfm.MEMORY_CONSERVE)
 
 
-def sm_steady_state_info(y):
-    """Does statsmodels' default steady-state shortcut kick in on this data?"""
+def sm_steady_state_info(y, **kw):
+    """Does statsmodels' steady-state shortcut kick in on this data?"""
     try:
-        kfm, kf = _sm_kf(y)
+        kfm, kf = _sm_kf(y, **kw)
         k = kf._filter(conserve_memory=kfm.MEMORY_CONSERVE)
         conv = bool(k.converged)
         per = int(k.period_converged) if conv else None
@@ -628,7 +638,17 @@ def machine_info():
     info["python"] = platform.python_version()
     info["numpy"] = np.__version__
     info["kfast"] = kfast_version() or "not installed"
+    try:
+        ext = importlib.import_module("kfast._kfast").__file__
+        info["kfast"] += " (extension built " + _dt.datetime.fromtimestamp(
+            os.path.getmtime(ext)).isoformat(timespec="minutes") + ")"
+    except Exception:  # noqa: BLE001
+        pass
     info["platform"] = platform.platform()
+    try:
+        info["load"] = "%.2f %.2f %.2f" % os.getloadavg()
+    except OSError:
+        info["load"] = "?"
     try:
         info["gcc"] = subprocess.run(["gcc", "-dumpfullversion"], capture_output=True,
                                      text=True, timeout=10).stdout.strip() or "?"
@@ -667,6 +687,7 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true", help="rewrite the results block of BENCHMARKS.md")
     ap.add_argument("--rounds", type=int, default=None, help="interleaved rounds per workload")
     ap.add_argument("--only", default="W1,W3,W7", help="comma list of workloads")
+    ap.add_argument("--json", metavar="PATH", help="also dump the medians as JSON to PATH")
     args = ap.parse_args(argv)
 
     buf = io.StringIO()
@@ -688,7 +709,7 @@ def main(argv=None):
     log(f"kfast benchmark  {_dt.datetime.now().isoformat(timespec='seconds')}  "
         f"{'(quick)' if quick else ''}")
     log(f"machine: {info['cpu']}, {info['cores']} cores | python {info['python']} | "
-        f"numpy {info['numpy']} | kfast {info['kfast']} | gcc {info['gcc']}")
+        f"numpy {info['numpy']} | kfast {info['kfast']} | gcc {info['gcc']} | load {info['load']}")
     log("peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()))
     log(f"model CV (n=4, m=2, dt={DT}, q=1, R=I), float64, seed {SEED}; T={T:,}; "
         f"slow peers T={T_slow:,}; {rounds} interleaved rounds, medians")
@@ -716,6 +737,10 @@ def main(argv=None):
         sm_ss_note = f"steady-state shortcut ON (default), converged at t={ss_per}"
     else:
         sm_ss_note = "steady-state shortcut ON (default) but never triggered"
+    conv0, _ = sm_steady_state_info(y, tolerance=0.0)
+    ns_note = ("as tuned, tolerance=0 (full recursion like kfast; "
+               + ("verified: never converges)" if conv0 is False else "WARNING: still converged)")
+               if conv0 is not None else "as tuned, tolerance=0 (full recursion like kfast)")
     results = {}
     slow = f"T={T_slow:,} (slow peer)"
 
@@ -730,7 +755,7 @@ def main(argv=None):
              "output buffers preallocated (no page faults)", "c"),
             ("statsmodels tuned", mk_sm_filter_tuned, T, "univariate, no symmetrisation, _filter(), conserve_memory; " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_filter_tuned(yy, False), T,
-             "as tuned, tolerance=0 (full recursion like kfast)", "peer"),
+             ns_note, "peer"),
             ("statsmodels default", mk_sm_filter_default, T, "KalmanFilter.filter(); " + sm_ss_note, "peer"),
             ("dynamax", mk_dx_filter, T, "jax.jit(lgssm_filter), CPU, x64", "peer"),
             ("simdkalman", mk_sk_filter, T_slow, slow, "peer"),
@@ -749,11 +774,13 @@ def main(argv=None):
     if "W3" in todo:
         log("\n== W3: total log-likelihood only ==")
         spec = [
-            ("kfast loglik", mk_kfast_loglik, T, "LinearGaussian.loglik()", "kfast"),
+            ("kfast loglik", mk_kfast_loglik, T, "LinearGaussian.loglik() (default form, joseph)", "kfast"),
+            ("kfast loglik standard", lambda yy: mk_kfast_loglik(yy, "standard"), T,
+             "LinearGaussian.loglik(form=\"standard\")", "kfast"),
             ("C loop", mk_c_loglik, T, "", "c"),
             ("statsmodels tuned", mk_sm_loglik_tuned, T, "univariate, no symmetrisation, loglike(conserve_memory=MEMORY_CONSERVE); " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_loglik_tuned(yy, False), T,
-             "as tuned, tolerance=0 (full recursion like kfast)", "peer"),
+             ns_note, "peer"),
             ("statsmodels default", mk_sm_loglik_default, T, "KalmanFilter.loglike(); " + sm_ss_note, "peer"),
             ("dynamax", mk_dx_loglik, T, "jax.jit(lgssm_filter(...).marginal_loglik)", "peer"),
             ("simdkalman", mk_sk_loglik, T_slow, slow + "; compute(log_likelihood=True); its loglik omits the -Tm/2 log 2pi constant (added back)", "peer"),
@@ -763,10 +790,10 @@ def main(argv=None):
         cs = build(spec, y, log)
         run_interleaved(cs, rounds, log=log)
         log("")
-        log(table(cs, ["kfast loglik"], "W3 results"))
+        log(table(cs, ["kfast loglik", "kfast loglik standard"], "W3 results"))
         log("cross-check vs C loop (same T):")
         chk = check_loglik(cs, y, log)
-        results["W3"] = (cs, ["kfast loglik"], chk)
+        results["W3"] = (cs, ["kfast loglik", "kfast loglik standard"], chk)
 
     # ---------------- W7: streaming ----------------
     if "W7" in todo:
@@ -784,7 +811,25 @@ def main(argv=None):
         results["W7"] = (cs, ["kfast stream"], {})
 
     elapsed = time.time() - t_start
-    log(f"\ntotal wall time {elapsed:.0f} s")
+    try:
+        info["load_end"] = "%.2f %.2f %.2f" % os.getloadavg()
+    except OSError:
+        info["load_end"] = "?"
+    log(f"\ntotal wall time {elapsed:.0f} s; load average at start {info['load']}, at end {info['load_end']}")
+
+    if args.json:
+        try:
+            import json
+            dump = {"info": info, "quick": quick, "results": {
+                w: [{"name": c.name, "steps": c.steps, "ok": c.ok, "error": c.error,
+                     "ns_per_step": c.ns_per_step() if c.ok else None,
+                     "iqr": list(c.spread()) if c.ok else None, "samples": len(c.samples)}
+                    for c in cs] for w, (cs, _, _) in results.items()}}
+            with open(args.json, "w") as f:
+                json.dump(dump, f, indent=1)
+            log(f"wrote {args.json}")
+        except Exception as e:  # noqa: BLE001
+            log(f"--json failed: {_short_err(e)}")
 
     if args.write:
         write_md(info, results, quick, T, T_slow, T_stream_k, T_stream_p, rounds, sm_ss_note, log)
@@ -800,6 +845,7 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
     lines = [BEGIN, ""]
     lines.append(f"Run: {_dt.date.today().isoformat()}{' (--quick)' if quick else ''}  ")
     lines.append(f"Machine: {info['cpu']}, {info['cores']} cores, {info['platform']}  ")
+    lines.append(f"Load average (1/5/15 min) at start {info['load']}, at end {info['load_end']}  ")
     lines.append(f"Python {info['python']}, NumPy {info['numpy']}, kfast {info['kfast']}, gcc {info['gcc']}  ")
     lines.append("Peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()) + "  ")
     lines.append(f"T = {T:,} (slow peers T = {T_slow:,}; streaming: kfast {T_sk:,}, filterpy {T_sp:,} "

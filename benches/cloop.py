@@ -12,6 +12,7 @@ column as unavailable.
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import os
 import shutil
@@ -53,6 +54,7 @@ class CLoop:
         if not cc:
             raise RuntimeError("no C compiler (gcc/cc) on PATH")
         tmpdir = tempfile.mkdtemp(prefix="kfast_bench_c_")
+        atexit.register(shutil.rmtree, tmpdir, True)
         so = os.path.join(tmpdir, "libkf_cv.so")
         cmd = [cc, "-O3", "-march=native", "-shared", "-fPIC",
                f"-DN={n}", f"-DM={m}", SRC, "-o", so, "-lm"]
