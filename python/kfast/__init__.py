@@ -13,15 +13,19 @@ Model and conventions (DESIGN.md §2)::
 1.0
 """
 
-from kfast._kfast import InnovationCovarianceError, KalmanFilter, KfastError
-from kfast._model import FilterResult, LinearGaussian
+from kfast._kfast import FixedLagSmoother, InnovationCovarianceError, KalmanFilter, KfastError
+from kfast._model import FilterResult, FixedLagResult, FixedPointResult, LinearGaussian, SmootherResult
 
 __version__ = "0.1.0"
 
 __all__ = [
     "LinearGaussian",
     "FilterResult",
+    "SmootherResult",
+    "FixedLagResult",
+    "FixedPointResult",
     "KalmanFilter",
+    "FixedLagSmoother",
     "KfastError",
     "InnovationCovarianceError",
 ]

@@ -10,7 +10,7 @@ import numpy as np
 from kfast import _kfast
 from kfast._arrays import as_float64, frozen_copy
 
-__all__ = ["LinearGaussian", "FilterResult"]
+__all__ = ["LinearGaussian", "FilterResult", "SmootherResult", "FixedLagResult", "FixedPointResult"]
 
 _FORMS = ("joseph", "standard")
 
@@ -57,6 +57,56 @@ class FilterResult:
         return f"FilterResult(T={T}, n={n}, m={m}, loglik={self.loglik:.6g})"
 
 
+_FILTER_FIELDS = tuple(FilterResult.__dataclass_fields__)
+
+
+@dataclass(frozen=True, repr=False)
+class SmootherResult:
+    """Fixed-interval (RTS) smoother results: every state given all T measurements."""
+
+    x_smooth: np.ndarray
+    """x(t|T-1), shape (T, n)."""
+    P_smooth: np.ndarray
+    """P(t|T-1), shape (T, n, n)."""
+    P_lag1: np.ndarray
+    """Cov(x[t], x[t-1] | y(0..T-1)), shape (T, n, n); row 0 is zero (there is no x[-1])."""
+    filter: FilterResult
+    """The forward pass."""
+
+    def __repr__(self) -> str:
+        T, n = self.x_smooth.shape
+        return f"SmootherResult(T={T}, n={n}, loglik={self.filter.loglik:.6g})"
+
+
+@dataclass(frozen=True, repr=False)
+class FixedLagResult:
+    """Fixed-lag smoother results: x[s] given y(0..s+lag) (fewer near the end of the data)."""
+
+    x_smooth: np.ndarray
+    """Row s is x(s | min(s+lag, T-1)), shape (T, n)."""
+    P_smooth: np.ndarray
+    """Row s is P(s | min(s+lag, T-1)), shape (T, n, n)."""
+    lag: int
+
+    def __repr__(self) -> str:
+        T, n = self.x_smooth.shape
+        return f"FixedLagResult(T={T}, n={n}, lag={self.lag})"
+
+
+@dataclass(frozen=True, repr=False)
+class FixedPointResult:
+    """Fixed-point smoother results: one state x[t_point] given more and more data."""
+
+    x: np.ndarray
+    """Row j is x(t_point | t_point + j), shape (T - t_point, n)."""
+    P: np.ndarray
+    """Row j is P(t_point | t_point + j), shape (T - t_point, n, n)."""
+    t_point: int
+
+    def __repr__(self) -> str:
+        return f"FixedPointResult(t_point={self.t_point}, rows={len(self.x)})"
+
+
 class LinearGaussian:
     """Linear Gaussian state-space model, validated once::
 
@@ -75,6 +125,9 @@ class LinearGaussian:
 
     def __init__(self, F, H, Q, R, B=None, D=None, N=None):
         given = {"F": F, "H": H, "Q": Q, "R": R, "B": B, "D": D, "N": N}
+        for name in ("F", "H", "Q", "R"):
+            if given[name] is None:
+                raise _kfast.KfastError(f"{name}: required (got None)")
         arrays = {k: (None if v is None else frozen_copy(k, v)) for k, v in given.items()}
         self._core = _kfast.LinearGaussian(**arrays)
         self.F: np.ndarray = arrays["F"]
@@ -129,6 +182,41 @@ class LinearGaussian:
         (6.142)), computed without storing any per-step covariance. Same arguments as filter."""
         return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form))
 
+    def smooth(self, y, x0, P0, u=None, form: str = "joseph") -> SmootherResult:
+        """Rauch-Tung-Striebel fixed-interval smoother: x(t|T-1), P(t|T-1) and the lag-one
+        covariances Cov(x[t], x[t-1] | all data), with the filter's results. Same arguments
+        and missing-data rules as ``filter``.
+
+        Backward pass (ALGORITHMS.md §5.2): J(t) = (P(t|t) F' - K(t) N') P(t+1|t)^-1,
+        x(t|T-1) = x(t|t) + J (x(t+1|T-1) - x(t+1|t)), P(t|T-1) = P(t|t) + J (P(t+1|T-1) -
+        P(t+1|t)) J'. With N != 0 this is the N = 0 smoother of the decorrelated model of
+        Söderström Lemma 6.4 (F - N R^-1 H in place of F), written without R^-1.
+        A singular P(t+1|t) is handled with its pseudo-inverse.
+        """
+        out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form))
+        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS})
+        return SmootherResult(filter=filt, **out)
+
+    def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:
+        """Fixed-lag smoother: the estimate of x[s] from y up to s + lag, for every s (near the
+        end, from all the data). lag = 0 is the filter, lag >= T-1 the RTS smoother.
+
+        Structured recursion of Söderström (6.70)-(6.75): O(lag n^3) per step, never the
+        filter on the (lag+1) n augmented state. For online use see ``kfast.FixedLagSmoother``.
+        """
+        y, x0, P0, u = self._data(y, x0, P0, u)
+        out = self._core.smooth_fixed_lag(y, x0, P0, _index("lag", lag), u=u, form=_form(form))
+        return FixedLagResult(lag=int(lag), **out)
+
+    def smooth_fixed_point(self, y, x0, P0, t_point: int, u=None, form: str = "joseph") -> FixedPointResult:
+        """Fixed-point smoother: the estimate of x[t_point] from y up to each t >= t_point, with
+        its covariance (Söderström (6.45)-(6.54)). Row 0 is the filtered x(t_point|t_point);
+        the last row equals the RTS smoother at t_point."""
+        t_point = _index("t_point", t_point)
+        y, x0, P0, u = self._data(y, x0, P0, u)
+        out = self._core.smooth_fixed_point(y, x0, P0, t_point, u=u, form=_form(form))
+        return FixedPointResult(t_point=t_point, **out)
+
     def _data(self, y, x0, P0, u):
         y = _column_if_1d(as_float64("y", y), self.n_obs)
         x0 = as_float64("x0", x0)
@@ -144,6 +232,15 @@ class LinearGaussian:
 def _column_if_1d(a: np.ndarray, width: int) -> np.ndarray:
     """A 1-D series of a scalar quantity as a (T, 1) column."""
     return a[:, None] if a.ndim == 1 and width == 1 else a
+
+
+def _index(name: str, value) -> int:
+    """An integer argument (lag, t_point, steps): Python or NumPy integers only."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise _kfast.KfastError(f"{name}: expected an integer, got {value!r}")
+    if value < 0:
+        raise _kfast.KfastError(f"{name}: must be >= 0, got {value}")
+    return int(value)
 
 
 def _form(form: str) -> str:

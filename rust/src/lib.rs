@@ -33,7 +33,11 @@ pub mod filter;
 pub mod model;
 #[cfg(feature = "python")]
 mod python;
+pub mod smoother;
 
 pub use error::{Error, Result};
 pub use filter::{filter, filter_into, loglik, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm};
 pub use model::{LinearGaussian, Matrices, StepMatrix};
+pub use smoother::{
+    smooth, smooth_fixed_lag, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult, SmootherResult,
+};

@@ -269,6 +269,12 @@ impl LinearGaussian {
             (None, Some(d)) => d.cols,
             (None, None) => 0,
         };
+        if k == 0 && (mats.b.is_some() || mats.d.is_some()) {
+            return Err(Error::arg(
+                if mats.b.is_some() { "B" } else { "D" },
+                "has no columns (k = 0 inputs)",
+            ));
+        }
         if let Some(b) = &mats.b {
             b.expect_shape("B", n, k, "(n × k)")?;
         }

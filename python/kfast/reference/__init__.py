@@ -6,3 +6,7 @@ Never imported by the fast path. Each function cites the equations it implements
 from kfast.reference.filter import kalman_filter
 
 __all__ = ["kalman_filter"]
+
+from kfast.reference.smoother import fixed_lag_augmented, map_smoother, rts_smoother  # noqa: E402
+
+__all__ += ["rts_smoother", "map_smoother", "fixed_lag_augmented"]

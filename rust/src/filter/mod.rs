@@ -6,12 +6,12 @@
 //! missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
 //! The recursion is Söderström Lemma 6.1 / (6.24) (see [`step`] for the equations).
 
-mod step;
+pub(crate) mod step;
 
 use std::sync::Arc;
 
 pub use step::UpdateForm;
-use step::Workspace;
+pub(crate) use step::Workspace;
 
 use crate::error::{Error, Result};
 use crate::model::{check_psd, check_symmetric, LinearGaussian};
@@ -199,7 +199,7 @@ pub fn loglik(
     Ok(total)
 }
 
-fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
+pub(crate) fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
     let mut ws = Workspace::new(model.n_states(), model.n_obs(), model.n_inputs());
     ws.x_pred.copy_from_slice(x0);
     ws.p_pred.copy_from_slice(p0);
@@ -340,7 +340,7 @@ fn check_input_row(u: &[f64], step: Option<usize>) -> Result<()> {
 }
 
 /// x0 has n finite entries; P0 is a finite symmetric PSD n × n matrix.
-fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
+pub(crate) fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
     if x0.len() != n {
         return Err(Error::arg(
             "x0",
@@ -403,7 +403,7 @@ impl KalmanFilter {
             );
         }
         check_observation(y, Some(self.t))?;
-        self.check_step_input(u, "D", self.model.matrices().d.is_some())?;
+        self.check_input(u, "D", self.model.matrices().d.is_some())?;
         if self.updated {
             return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
         }
@@ -416,7 +416,7 @@ impl KalmanFilter {
 
     /// Time update to the next step; `u` is needed when the model has B.
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
-        self.check_step_input(u, "B", self.model.matrices().b.is_some())?;
+        self.check_input(u, "B", self.model.matrices().b.is_some())?;
         if !self.updated {
             self.ws.skip_update();
         }
@@ -435,7 +435,7 @@ impl KalmanFilter {
 
     /// Checks the step is within a per-step model and `u`; `u` is required when the matrix
     /// `needs` (D for the update, B for the time update) is in the model.
-    fn check_step_input(&self, u: Option<&[f64]>, needs: &str, required: bool) -> Result<()> {
+    pub(crate) fn check_input(&self, u: Option<&[f64]>, needs: &str, required: bool) -> Result<()> {
         if let Some(tm) = self.model.steps() {
             if self.t >= tm {
                 return Err(Error::arg(
@@ -495,5 +495,14 @@ impl KalmanFilter {
     /// The model.
     pub fn model(&self) -> &Arc<LinearGaussian> {
         &self.model
+    }
+
+    /// Whether the current step has been updated (x, P are then filtered estimates).
+    pub fn is_updated(&self) -> bool {
+        self.updated
+    }
+
+    pub(crate) fn workspace(&self) -> &Workspace {
+        &self.ws
     }
 }

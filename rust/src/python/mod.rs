@@ -2,7 +2,8 @@
 //! nothing else (no numerics here). The Python package `kfast` wraps it; arrays arrive here
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
-use std::sync::Arc;
+mod model;
+mod streaming;
 
 use numpy::ndarray::IxDyn;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -13,8 +14,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::PyDict;
 
 use crate::error::Error;
-use crate::filter::{self, FilterOutputs, Series, UpdateForm};
-use crate::model::{self, Matrices, StepMatrix};
+use crate::filter::{FilterOutputs, Series, UpdateForm};
 
 create_exception!(
     kfast,
@@ -76,6 +76,11 @@ fn prior<'a>(
     Ok((x0, p0s))
 }
 
+/// A count or index argument that must not be negative.
+fn non_negative(arg: &str, value: i64) -> PyResult<usize> {
+    usize::try_from(value).map_err(|_| KfastError::new_err(format!("{arg}: must be ≥ 0, got {value}")))
+}
+
 fn parse_form(form: &str) -> PyResult<UpdateForm> {
     match form {
         "joseph" => Ok(UpdateForm::Joseph),
@@ -83,160 +88,6 @@ fn parse_form(form: &str) -> PyResult<UpdateForm> {
         other => Err(KfastError::new_err(format!(
             "form: expected \"joseph\" or \"standard\", got {other:?}"
         ))),
-    }
-}
-
-fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
-    let values = arr
-        .as_slice()
-        .map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
-    Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
-}
-
-/// The compiled model; `kfast.LinearGaussian` wraps it.
-#[pyclass(module = "kfast._kfast", name = "LinearGaussian", frozen)]
-struct PyLinearGaussian {
-    inner: Arc<model::LinearGaussian>,
-}
-
-#[pymethods]
-impl PyLinearGaussian {
-    #[new]
-    #[pyo3(signature = (F, H, Q, R, B=None, D=None, N=None))]
-    #[allow(non_snake_case)]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        F: PyReadonlyArrayDyn<'_, f64>,
-        H: PyReadonlyArrayDyn<'_, f64>,
-        Q: PyReadonlyArrayDyn<'_, f64>,
-        R: PyReadonlyArrayDyn<'_, f64>,
-        B: Option<PyReadonlyArrayDyn<'_, f64>>,
-        D: Option<PyReadonlyArrayDyn<'_, f64>>,
-        N: Option<PyReadonlyArrayDyn<'_, f64>>,
-    ) -> PyResult<Self> {
-        let opt = |arg: &'static str, a: &Option<PyReadonlyArrayDyn<'_, f64>>| {
-            a.as_ref().map(|a| step_matrix(arg, a)).transpose()
-        };
-        let mats = Matrices {
-            b: opt("B", &B)?,
-            d: opt("D", &D)?,
-            n: opt("N", &N)?,
-            ..Matrices::new(
-                step_matrix("F", &F)?,
-                step_matrix("H", &H)?,
-                step_matrix("Q", &Q)?,
-                step_matrix("R", &R)?,
-            )
-        };
-        Ok(PyLinearGaussian {
-            inner: Arc::new(model::LinearGaussian::new(mats)?),
-        })
-    }
-
-    #[getter]
-    fn n_states(&self) -> usize {
-        self.inner.n_states()
-    }
-
-    #[getter]
-    fn n_obs(&self) -> usize {
-        self.inner.n_obs()
-    }
-
-    #[getter]
-    fn n_inputs(&self) -> usize {
-        self.inner.n_inputs()
-    }
-
-    #[getter]
-    fn steps(&self) -> Option<usize> {
-        self.inner.steps()
-    }
-
-    /// Runs the filter; returns a dict of the FilterResult fields.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
-    #[allow(non_snake_case)]
-    fn filter<'py>(
-        &self,
-        py: Python<'py>,
-        y: PyReadonlyArrayDyn<'py, f64>,
-        x0: PyReadonlyArrayDyn<'py, f64>,
-        P0: PyReadonlyArrayDyn<'py, f64>,
-        u: Option<PyReadonlyArrayDyn<'py, f64>>,
-        form: &str,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let form = parse_form(form)?;
-        let (y, u) = series(&y, u.as_ref())?;
-        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
-        let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
-        let zeros = |dims: &[usize]| PyArrayDyn::<f64>::zeros(py, IxDyn(dims), false);
-        let names = [
-            "x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next",
-        ];
-        let arrays = [
-            zeros(&[steps, n]),
-            zeros(&[steps, n, n]),
-            zeros(&[steps, n]),
-            zeros(&[steps, n, n]),
-            zeros(&[steps, m]),
-            zeros(&[steps, m, m]),
-            zeros(&[steps, n, m]),
-            zeros(&[steps, n, m]),
-            zeros(&[steps]),
-            zeros(&[n]),
-            zeros(&[n, n]),
-        ];
-        // SAFETY: the arrays were just created here and are not shared with Python yet.
-        let mut slices: Vec<&mut [f64]> = arrays
-            .iter()
-            .map(|a| unsafe { a.as_slice_mut() })
-            .collect::<Result<_, _>>()
-            .map_err(|e| KfastError::new_err(e.to_string()))?;
-        let [x_pred, p_pred, x_filt, p_filt, innov, innovation_cov, gain, gain_pred, loglik_t, x_next, p_next] =
-            &mut slices[..]
-        else {
-            unreachable!("eleven output arrays")
-        };
-        let out = FilterOutputs {
-            x_pred,
-            p_pred,
-            x_filt,
-            p_filt,
-            innov,
-            innovation_cov,
-            gain,
-            gain_pred,
-            loglik_t,
-            x_next,
-            p_next,
-        };
-        let model = &*self.inner;
-        let loglik = py.detach(|| filter::filter_into(model, y, u, x0, p0, form, out))?;
-        let dict = PyDict::new(py);
-        for (name, arr) in names.iter().zip(arrays) {
-            dict.set_item(name, arr)?;
-        }
-        dict.set_item("loglik", loglik)?;
-        Ok(dict)
-    }
-
-    /// The log-likelihood alone.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
-    #[allow(non_snake_case)]
-    fn loglik(
-        &self,
-        py: Python<'_>,
-        y: PyReadonlyArrayDyn<'_, f64>,
-        x0: PyReadonlyArrayDyn<'_, f64>,
-        P0: PyReadonlyArrayDyn<'_, f64>,
-        u: Option<PyReadonlyArrayDyn<'_, f64>>,
-        form: &str,
-    ) -> PyResult<f64> {
-        let form = parse_form(form)?;
-        let (y, u) = series(&y, u.as_ref())?;
-        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
-        let model = &*self.inner;
-        Ok(py.detach(|| filter::loglik(model, y, u, x0, p0, form))?)
     }
 }
 
@@ -253,18 +104,8 @@ fn series<'a>(
     Ok((ys, us))
 }
 
-/// Streaming Kalman filter: `update(y)`, `predict(u)`, `step(y, u)`; `x`, `P`.
-///
-/// Starts from the prior (x0, P0) = x(0|-1), P(0|-1). After `update` at step t, `x` and `P`
-/// are x(t|t), P(t|t); after `predict` they are x(t+1|t), P(t+1|t). A `predict` without an
-/// `update` treats the step as missing. Equals `LinearGaussian.filter` on the same data.
-#[pyclass(module = "kfast._kfast", name = "KalmanFilter")]
-struct PyKalmanFilter {
-    inner: filter::KalmanFilter,
-}
-
-/// A vector argument as a float64 slice: float64 contiguous arrays are read in place, anything
-/// else goes through `kfast._arrays.as_float64` (lists, ints, float32, scalars ...).
+/// A vector argument as a float64 array: float64 contiguous 1-D arrays are read in place,
+/// anything else goes through `kfast._arrays.as_float64` (lists, ints, float32, scalars ...).
 fn vector<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
     if let Ok(arr) = value.cast::<PyArrayDyn<f64>>() {
         if arr.is_c_contiguous() && arr.ndim() == 1 {
@@ -286,105 +127,99 @@ fn vector<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResu
     Ok(arr.readonly())
 }
 
-#[pymethods]
-impl PyKalmanFilter {
-    #[new]
-    #[pyo3(signature = (model, x0, P0, form="joseph"))]
-    #[allow(non_snake_case)]
-    fn new(
-        py: Python<'_>,
-        model: &Bound<'_, PyAny>,
-        x0: &Bound<'_, PyAny>,
-        P0: &Bound<'_, PyAny>,
-        form: &str,
-    ) -> PyResult<Self> {
-        let core = match model.cast::<PyLinearGaussian>() {
-            Ok(core) => core.clone(),
-            Err(_) => model
-                .getattr("_core")
-                .and_then(|c| Ok(c.cast_into::<PyLinearGaussian>()?))
-                .map_err(|_| KfastError::new_err("model: expected a kfast.LinearGaussian"))?,
-        };
-        let n = core.get().inner.n_states();
-        let x0 = as_float64(py, "x0", x0)?;
-        let p0 = as_float64(py, "P0", P0)?;
-        let x0 = if n == 1 && x0.len() == 1 {
-            x0.reshape(IxDyn(&[1]))?.cast_into::<PyArrayDyn<f64>>()?
-        } else {
-            x0
-        };
-        let p0 = if n == 1 && p0.len() == 1 {
-            p0.reshape(IxDyn(&[1, 1]))?.cast_into::<PyArrayDyn<f64>>()?
-        } else {
-            p0
-        };
-        let (x0, p0) = (x0.readonly(), p0.readonly());
-        let (x0, p0) = prior(&x0, &p0, n)?;
-        let inner = filter::KalmanFilter::new(core.get().inner.clone(), x0, p0, parse_form(form)?)?;
-        Ok(PyKalmanFilter { inner })
+/// The data of an array `vector` returned.
+fn slice<'a>(name: &str, arr: &'a PyReadonlyArrayDyn<'_, f64>) -> PyResult<&'a [f64]> {
+    data(name, arr, 1)
+}
+
+/// A vector as a new NumPy array of the given shape.
+fn to_array<'py>(py: Python<'py>, values: &[f64], shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    numpy::PyArray1::from_slice(py, values).reshape(IxDyn(shape))
+}
+
+/// Named output arrays, allocated once with the GIL held and then filled without it.
+struct OutArrays<'py> {
+    names: Vec<&'static str>,
+    arrays: Vec<Bound<'py, PyArrayDyn<f64>>>,
+}
+
+impl<'py> OutArrays<'py> {
+    fn new(py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
+        OutArrays {
+            names: specs.iter().map(|s| s.0).collect(),
+            arrays: specs
+                .iter()
+                .map(|s| PyArrayDyn::<f64>::zeros(py, IxDyn(s.1), false))
+                .collect(),
+        }
     }
 
-    /// Measurement update with one observation y (length m; NaN = missing).
-    #[pyo3(signature = (y, u=None))]
-    fn update(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let y = vector(py, "y", y)?;
-        let u = u.map(|u| vector(py, "u", u)).transpose()?;
-        let u = u
-            .as_ref()
-            .map(|u| u.as_slice())
-            .transpose()
-            .map_err(|e| KfastError::new_err(e.to_string()))?;
-        Ok(self
-            .inner
-            .update(y.as_slice().map_err(|e| KfastError::new_err(e.to_string()))?, u)?)
+    /// The filter's outputs, in the order of [`FilterOutputs`].
+    fn for_filter(py: Python<'py>, steps: usize, n: usize, m: usize) -> Self {
+        Self::new(
+            py,
+            &[
+                ("x_pred", &[steps, n]),
+                ("P_pred", &[steps, n, n]),
+                ("x_filt", &[steps, n]),
+                ("P_filt", &[steps, n, n]),
+                ("innov", &[steps, m]),
+                ("S", &[steps, m, m]),
+                ("K", &[steps, n, m]),
+                ("K_pred", &[steps, n, m]),
+                ("loglik_t", &[steps]),
+                ("x_next", &[n]),
+                ("P_next", &[n, n]),
+            ],
+        )
     }
 
-    /// Time update to the next step (u is needed when the model has B).
-    #[pyo3(signature = (u=None))]
-    fn predict(&mut self, py: Python<'_>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let u = u.map(|u| vector(py, "u", u)).transpose()?;
-        let u = u
-            .as_ref()
-            .map(|u| u.as_slice())
-            .transpose()
-            .map_err(|e| KfastError::new_err(e.to_string()))?;
-        Ok(self.inner.predict(u)?)
+    /// Appends more arrays.
+    fn with(mut self, py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
+        let more = Self::new(py, specs);
+        self.names.extend(more.names);
+        self.arrays.extend(more.arrays);
+        self
     }
 
-    /// `update(y, u)` then `predict(u)`.
-    #[pyo3(signature = (y, u=None))]
-    fn step(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        self.update(py, y, u)?;
-        self.predict(py, u)
+    /// Mutable views of every array, in order.
+    fn slices(&mut self) -> PyResult<Vec<&mut [f64]>> {
+        // SAFETY: the arrays were created by `new` and are not shared with Python until
+        // `into_dict`; each is borrowed once here.
+        self.arrays
+            .iter()
+            .map(|a| unsafe { a.as_slice_mut() })
+            .collect::<Result<_, _>>()
+            .map_err(|e| KfastError::new_err(e.to_string()))
     }
 
-    /// Current state estimate (a copy).
-    #[getter]
-    fn x<'py>(&self, py: Python<'py>) -> Bound<'py, PyArrayDyn<f64>> {
-        let n = self.inner.model().n_states();
-        numpy::PyArray1::from_slice(py, self.inner.x())
-            .reshape(IxDyn(&[n]))
-            .expect("n entries")
+    fn into_dict(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, arr) in self.names.into_iter().zip(self.arrays) {
+            dict.set_item(name, arr)?;
+        }
+        Ok(dict)
     }
+}
 
-    /// Covariance of `x` (a copy).
-    #[getter]
-    #[allow(non_snake_case)]
-    fn P<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let n = self.inner.model().n_states();
-        numpy::PyArray1::from_slice(py, self.inner.p()).reshape(IxDyn(&[n, n]))
-    }
-
-    /// Current step (number of predicts so far).
-    #[getter]
-    fn t(&self) -> usize {
-        self.inner.t()
-    }
-
-    /// Sum of the log-likelihood terms of the updates so far.
-    #[getter]
-    fn loglik(&self) -> f64 {
-        self.inner.loglik()
+/// The first eleven slices as [`FilterOutputs`] (see [`OutArrays::for_filter`]).
+fn filter_outputs<'a>(s: &'a mut [&mut [f64]]) -> FilterOutputs<'a> {
+    let [x_pred, p_pred, x_filt, p_filt, innov, innovation_cov, gain, gain_pred, loglik_t, x_next, p_next, ..] = s
+    else {
+        unreachable!("OutArrays::for_filter makes eleven arrays")
+    };
+    FilterOutputs {
+        x_pred,
+        p_pred,
+        x_filt,
+        p_filt,
+        innov,
+        innovation_cov,
+        gain,
+        gain_pred,
+        loglik_t,
+        x_next,
+        p_next,
     }
 }
 
@@ -393,7 +228,8 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("KfastError", py.get_type::<KfastError>())?;
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
-    m.add_class::<PyLinearGaussian>()?;
-    m.add_class::<PyKalmanFilter>()?;
+    m.add_class::<model::PyLinearGaussian>()?;
+    m.add_class::<streaming::PyKalmanFilter>()?;
+    m.add_class::<streaming::PyFixedLagSmoother>()?;
     Ok(())
 }

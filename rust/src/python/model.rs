@@ -1,0 +1,241 @@
+//! `kfast._kfast.LinearGaussian`: the compiled model and its sequence methods.
+
+use std::sync::Arc;
+
+use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use super::{filter_outputs, non_negative, parse_form, prior, series, KfastError, OutArrays};
+use crate::filter;
+use crate::model::{self, Matrices, StepMatrix};
+use crate::smoother::{self, FilteredView, SmootherOutputs};
+
+fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
+    let values = arr
+        .as_slice()
+        .map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
+    Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
+}
+
+/// The compiled model; `kfast.LinearGaussian` wraps it.
+#[pyclass(module = "kfast._kfast", name = "LinearGaussian", frozen)]
+pub(super) struct PyLinearGaussian {
+    pub(super) inner: Arc<model::LinearGaussian>,
+}
+
+type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
+
+#[pymethods]
+impl PyLinearGaussian {
+    #[new]
+    #[pyo3(signature = (F, H, Q, R, B=None, D=None, N=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        F: Array<'_>,
+        H: Array<'_>,
+        Q: Array<'_>,
+        R: Array<'_>,
+        B: Option<Array<'_>>,
+        D: Option<Array<'_>>,
+        N: Option<Array<'_>>,
+    ) -> PyResult<Self> {
+        let opt = |arg: &'static str, a: &Option<Array<'_>>| a.as_ref().map(|a| step_matrix(arg, a)).transpose();
+        let mats = Matrices {
+            b: opt("B", &B)?,
+            d: opt("D", &D)?,
+            n: opt("N", &N)?,
+            ..Matrices::new(
+                step_matrix("F", &F)?,
+                step_matrix("H", &H)?,
+                step_matrix("Q", &Q)?,
+                step_matrix("R", &R)?,
+            )
+        };
+        Ok(PyLinearGaussian {
+            inner: Arc::new(model::LinearGaussian::new(mats)?),
+        })
+    }
+
+    #[getter]
+    fn n_states(&self) -> usize {
+        self.inner.n_states()
+    }
+
+    #[getter]
+    fn n_obs(&self) -> usize {
+        self.inner.n_obs()
+    }
+
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        self.inner.n_inputs()
+    }
+
+    #[getter]
+    fn steps(&self) -> Option<usize> {
+        self.inner.steps()
+    }
+
+    /// Runs the filter; returns a dict of the FilterResult fields.
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    #[allow(non_snake_case)]
+    fn filter<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        u: Option<Array<'py>>,
+        form: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let form = parse_form(form)?;
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let mut out = OutArrays::for_filter(py, y.steps(), self.inner.n_states(), self.inner.n_obs());
+        let mut slices = out.slices()?;
+        let model = &*self.inner;
+        let loglik = py.detach(|| filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&mut slices)))?;
+        drop(slices);
+        let dict = out.into_dict(py)?;
+        dict.set_item("loglik", loglik)?;
+        Ok(dict)
+    }
+
+    /// The log-likelihood alone.
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    #[allow(non_snake_case)]
+    fn loglik(
+        &self,
+        py: Python<'_>,
+        y: Array<'_>,
+        x0: Array<'_>,
+        P0: Array<'_>,
+        u: Option<Array<'_>>,
+        form: &str,
+    ) -> PyResult<f64> {
+        let form = parse_form(form)?;
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let model = &*self.inner;
+        Ok(py.detach(|| filter::loglik(model, y, u, x0, p0, form))?)
+    }
+
+    /// Filter then RTS smoother; one dict with the filter's fields and x_smooth, P_smooth,
+    /// P_lag1.
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    #[allow(non_snake_case)]
+    fn smooth<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        u: Option<Array<'py>>,
+        form: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let form = parse_form(form)?;
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
+        let mut out = OutArrays::for_filter(py, steps, n, m).with(
+            py,
+            &[
+                ("x_smooth", &[steps, n]),
+                ("P_smooth", &[steps, n, n]),
+                ("P_lag1", &[steps, n, n]),
+            ],
+        );
+        let mut slices = out.slices()?;
+        let model = &*self.inner;
+        let loglik = py.detach(|| -> crate::Result<f64> {
+            let loglik = filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&mut slices))?;
+            let [x_pred, p_pred, x_filt, p_filt, _, _, gain, _, _, _, _, x_smooth, p_smooth, p_lag1] = &mut slices[..]
+            else {
+                unreachable!("fourteen output arrays")
+            };
+            let view = FilteredView {
+                x_pred,
+                p_pred,
+                x_filt,
+                p_filt,
+                gain,
+            };
+            smoother::rts_into(
+                model,
+                steps,
+                view,
+                SmootherOutputs {
+                    x_smooth,
+                    p_smooth,
+                    p_lag1,
+                },
+            )?;
+            Ok(loglik)
+        })?;
+        drop(slices);
+        let dict = out.into_dict(py)?;
+        dict.set_item("loglik", loglik)?;
+        Ok(dict)
+    }
+
+    /// Fixed-lag smoother; dict with x_smooth (T, n), P_smooth (T, n, n).
+    #[pyo3(signature = (y, x0, P0, lag, u=None, form="joseph"))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn smooth_fixed_lag<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        lag: i64,
+        u: Option<Array<'py>>,
+        form: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let form = parse_form(form)?;
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let lag = non_negative("lag", lag)?;
+        let (n, steps) = (self.inner.n_states(), y.steps());
+        let mut out = OutArrays::new(py, &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n])]);
+        let mut slices = out.slices()?;
+        let model = &*self.inner;
+        py.detach(|| {
+            let [x_out, p_out] = &mut slices[..] else {
+                unreachable!("two output arrays")
+            };
+            smoother::smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, x_out, p_out)
+        })?;
+        drop(slices);
+        out.into_dict(py)
+    }
+
+    /// Fixed-point smoother; dict with x (T - t_point, n), P (T - t_point, n, n).
+    #[pyo3(signature = (y, x0, P0, t_point, u=None, form="joseph"))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn smooth_fixed_point<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        t_point: i64,
+        u: Option<Array<'py>>,
+        form: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let form = parse_form(form)?;
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let t_point = non_negative("t_point", t_point)?;
+        let model = &*self.inner;
+        let res = py.detach(|| smoother::smooth_fixed_point(model, y, u, x0, p0, t_point, form))?;
+        let (n, rows) = (self.inner.n_states(), y.steps() - t_point);
+        let dict = PyDict::new(py);
+        dict.set_item("x", super::to_array(py, &res.x, &[rows, n])?)?;
+        dict.set_item("P", super::to_array(py, &res.p, &[rows, n, n])?)?;
+        Ok(dict)
+    }
+}

@@ -1,0 +1,279 @@
+//! Fixed-lag and fixed-point smoothing alongside the filter (Söderström (6.43)–(6.79)),
+//! with the structured recursion of [`PastState`]: O(lag · n³) per step, never the filter
+//! on the augmented (lag+1)·n state.
+
+use std::sync::Arc;
+
+use super::past::{PastState, Scratch};
+use crate::error::{Error, Result};
+use crate::filter::{check_data, start, Series, UpdateForm, Workspace};
+use crate::model::LinearGaussian;
+use crate::KalmanFilter;
+
+/// The last `lag + 1` states x̂(t−i|t), i = 0..lag, as the filter advances.
+#[derive(Debug, Clone)]
+struct LagWindow {
+    /// Slot i holds x[t−i]; only the first `len` slots are in use (the window grows at the start).
+    slots: Vec<PastState>,
+    len: usize,
+    scratch: Scratch,
+}
+
+impl LagWindow {
+    fn new(n: usize, m: usize, lag: usize) -> Self {
+        LagWindow {
+            slots: vec![PastState::new(n); lag + 1],
+            len: 0,
+            scratch: Scratch::new(n, m),
+        }
+    }
+
+    /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
+    fn begin_step(&mut self, ws: &Workspace) {
+        self.slots.rotate_right(1);
+        self.slots[0].start(ws);
+        self.len = (self.len + 1).min(self.slots.len());
+    }
+
+    fn update(&mut self, ws: &Workspace) {
+        for slot in &mut self.slots[..self.len] {
+            slot.update(ws, &mut self.scratch);
+        }
+    }
+
+    /// After the filter's time update at t (with F[t], H[t]): advance every cross covariance.
+    fn end_step(&mut self, f: &[f64], h: &[f64], ws: &Workspace) {
+        self.scratch.set_closed_loop(f, h, ws);
+        for slot in &mut self.slots[..self.len] {
+            slot.advance(&mut self.scratch);
+        }
+    }
+
+    fn lag(&self) -> usize {
+        self.slots.len() - 1
+    }
+}
+
+/// Smoothed estimates of every state from a lagged amount of data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FixedLagResult {
+    /// The lag L.
+    pub lag: usize,
+    /// Row s is x̂(s | min(s + L, T − 1)), `(T, n)`.
+    pub x_smooth: Vec<f64>,
+    /// Row s is P(s | min(s + L, T − 1)), `(T, n, n)`.
+    pub p_smooth: Vec<f64>,
+}
+
+/// Fixed-lag smoother: the estimate of x[s] from y up to s + `lag` (up to the last
+/// observation near the end), for every s. `lag = 0` is the filter; `lag ≥ T − 1` gives the
+/// RTS smoother at every s. Söderström (6.55)–(6.79), structured recursion.
+pub fn smooth_fixed_lag(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    lag: usize,
+    form: UpdateForm,
+) -> Result<FixedLagResult> {
+    let (n, steps) = (model.n_states(), y.steps());
+    let mut res = FixedLagResult {
+        lag,
+        x_smooth: vec![0.0; steps * n],
+        p_smooth: vec![0.0; steps * n * n],
+    };
+    smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, &mut res.x_smooth, &mut res.p_smooth)?;
+    Ok(res)
+}
+
+/// [`smooth_fixed_lag`] writing into `x_out` `(T, n)` and `p_out` `(T, n, n)`.
+#[allow(clippy::too_many_arguments)]
+pub fn smooth_fixed_lag_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    lag: usize,
+    form: UpdateForm,
+    x_out: &mut [f64],
+    p_out: &mut [f64],
+) -> Result<()> {
+    let steps = check_data(model, y, u, x0, p0)?;
+    let (n, m) = (model.n_states(), model.n_obs());
+    check_len("x_smooth", x_out, steps * n)?;
+    check_len("P_smooth", p_out, steps * n * n)?;
+    let mut ws = start(model, x0, p0);
+    let mut window = LagWindow::new(n, m, lag.min(steps - 1));
+    let emit = |s: usize, slot: &PastState, x_out: &mut [f64], p_out: &mut [f64]| {
+        x_out[s * n..(s + 1) * n].copy_from_slice(&slot.x);
+        p_out[s * n * n..(s + 1) * n * n].copy_from_slice(&slot.p);
+    };
+    for t in 0..steps {
+        let sys = model.at(t);
+        let u_t = u.map(|u| u.row(t));
+        ws.update(&sys, y.row(t), u_t, form, t)?;
+        window.begin_step(&ws);
+        window.update(&ws);
+        if window.len == window.slots.len() {
+            emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
+        }
+        ws.predict(&sys, u_t);
+        window.end_step(sys.f, sys.h, &ws);
+    }
+    // The last states have less than `lag` steps of data after them: x̂(T−1−i | T−1).
+    let emitted = steps.saturating_sub(window.lag());
+    for s in emitted..steps {
+        emit(s, &window.slots[steps - 1 - s], x_out, p_out);
+    }
+    Ok(())
+}
+
+/// Estimates of one state from growing amounts of data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FixedPointResult {
+    /// The fixed time s.
+    pub t_point: usize,
+    /// Row j is x̂(s | s + j), j = 0..T−s, `(T − s, n)`.
+    pub x: Vec<f64>,
+    /// Row j is P(s | s + j), `(T − s, n, n)`.
+    pub p: Vec<f64>,
+}
+
+/// Fixed-point smoother: the estimate of x[`t_point`] from y up to each t ≥ t_point, with its
+/// covariance. Söderström (6.45)–(6.54).
+pub fn smooth_fixed_point(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    t_point: usize,
+    form: UpdateForm,
+) -> Result<FixedPointResult> {
+    let steps = check_data(model, y, u, x0, p0)?;
+    if t_point >= steps {
+        return Err(Error::arg(
+            "t_point",
+            format!("must be a step of the data, 0 ≤ t_point < T = {steps}, got {t_point}"),
+        ));
+    }
+    let (n, m) = (model.n_states(), model.n_obs());
+    let rows = steps - t_point;
+    let mut res = FixedPointResult {
+        t_point,
+        x: vec![0.0; rows * n],
+        p: vec![0.0; rows * n * n],
+    };
+    let mut ws = start(model, x0, p0);
+    let mut past = PastState::new(n);
+    let mut scratch = Scratch::new(n, m);
+    for t in 0..steps {
+        let sys = model.at(t);
+        let u_t = u.map(|u| u.row(t));
+        ws.update(&sys, y.row(t), u_t, form, t)?;
+        if t >= t_point {
+            if t == t_point {
+                past.start(&ws);
+            }
+            past.update(&ws, &mut scratch);
+            let j = t - t_point;
+            res.x[j * n..(j + 1) * n].copy_from_slice(&past.x);
+            res.p[j * n * n..(j + 1) * n * n].copy_from_slice(&past.p);
+        }
+        ws.predict(&sys, u_t);
+        if t >= t_point {
+            scratch.set_closed_loop(sys.f, sys.h, &ws);
+            past.advance(&mut scratch);
+        }
+    }
+    Ok(res)
+}
+
+fn check_len(arg: &'static str, buf: &[f64], want: usize) -> Result<()> {
+    if buf.len() != want {
+        return Err(Error::arg(
+            arg,
+            format!("output buffer has {} entries, needs {want}", buf.len()),
+        ));
+    }
+    Ok(())
+}
+
+/// Fixed-lag smoothing online: after `update(y)` at step t, [`lagged`](Self::lagged) is
+/// x̂(t−lag | t) once t ≥ lag, and [`window`](Self::window) gives x̂(t−i | t) for every i the
+/// window holds. Same arguments and NaN rules as [`KalmanFilter`].
+#[derive(Debug, Clone)]
+pub struct FixedLagSmoother {
+    filter: KalmanFilter,
+    window: LagWindow,
+}
+
+impl FixedLagSmoother {
+    /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`.
+    pub fn new(model: Arc<LinearGaussian>, x0: &[f64], p0: &[f64], lag: usize, form: UpdateForm) -> Result<Self> {
+        let (n, m) = (model.n_states(), model.n_obs());
+        let filter = KalmanFilter::new(model, x0, p0, form)?;
+        Ok(FixedLagSmoother {
+            filter,
+            window: LagWindow::new(n, m, lag),
+        })
+    }
+
+    /// Measurement update with y at the current step.
+    pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        self.filter.update(y, u)?;
+        let ws = self.filter.workspace();
+        self.window.begin_step(ws);
+        self.window.update(ws);
+        Ok(())
+    }
+
+    /// Time update to the next step (a step without `update` counts as missing).
+    pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
+        let t = self.filter.t();
+        if !self.filter.is_updated() {
+            self.filter
+                .check_input(u, "B", self.filter.model().matrices().b.is_some())?;
+            self.window.begin_step(self.filter.workspace());
+        }
+        self.filter.predict(u)?;
+        let sys = self.filter.model().at(t);
+        self.window.end_step(sys.f, sys.h, self.filter.workspace());
+        Ok(())
+    }
+
+    /// `update(y, u)` then `predict(u)`.
+    pub fn step(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        self.update(y, u)?;
+        self.predict(u)
+    }
+
+    /// x̂(t−lag | t) and P(t−lag | t) after an update at t ≥ lag; `None` before.
+    pub fn lagged(&self) -> Option<(&[f64], &[f64])> {
+        let lag = self.window.lag();
+        (self.filter.is_updated() && self.window.len > lag).then(|| {
+            let slot = &self.window.slots[lag];
+            (slot.x.as_slice(), slot.p.as_slice())
+        })
+    }
+
+    /// After an update at t: x̂(t−i | t), P(t−i | t) for i = 0..len (len ≤ lag + 1).
+    pub fn window(&self) -> impl Iterator<Item = (&[f64], &[f64])> {
+        let len = if self.filter.is_updated() { self.window.len } else { 0 };
+        self.window.slots[..len]
+            .iter()
+            .map(|s| (s.x.as_slice(), s.p.as_slice()))
+    }
+
+    /// The lag.
+    pub fn lag(&self) -> usize {
+        self.window.lag()
+    }
+
+    /// The underlying filter (its x, P, t and log-likelihood).
+    pub fn filter(&self) -> &KalmanFilter {
+        &self.filter
+    }
+}
