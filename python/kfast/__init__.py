@@ -14,7 +14,15 @@ Model and conventions (DESIGN.md §2)::
 """
 
 from kfast._kfast import FixedLagSmoother, InnovationCovarianceError, KalmanFilter, KfastError
-from kfast._model import FilterResult, FixedLagResult, FixedPointResult, LinearGaussian, SmootherResult
+from kfast._model import (
+    FilterResult,
+    FixedLagResult,
+    FixedPointResult,
+    Forecast,
+    LinearGaussian,
+    Simulation,
+    SmootherResult,
+)
 
 __version__ = "0.1.0"
 
@@ -24,6 +32,8 @@ __all__ = [
     "SmootherResult",
     "FixedLagResult",
     "FixedPointResult",
+    "Forecast",
+    "Simulation",
     "KalmanFilter",
     "FixedLagSmoother",
     "KfastError",

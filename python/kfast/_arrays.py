@@ -26,8 +26,11 @@ def as_float64(name: str, value: object) -> np.ndarray:
     return np.asarray(arr, dtype=np.float64, order="C")
 
 
-def frozen_copy(name: str, value: object) -> np.ndarray:
-    """A read-only float64 copy of ``value`` (for model attributes)."""
+def frozen_copy(name: str, value: object, scalar_shape: tuple = ()) -> np.ndarray:
+    """A read-only float64 copy of ``value`` (for model attributes); a scalar gets
+    ``scalar_shape`` (e.g. (1, 1) for a 1 x 1 matrix)."""
     arr = np.array(as_float64(name, value), copy=True)
+    if arr.ndim == 0:
+        arr = arr.reshape(scalar_shape)
     arr.setflags(write=False)
     return arr

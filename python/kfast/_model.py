@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Optional
+from dataclasses import dataclass, field
+from typing import Iterator, NamedTuple, Optional
 
 import numpy as np
 
 from kfast import _kfast
 from kfast._arrays import as_float64, frozen_copy
 
-__all__ = ["LinearGaussian", "FilterResult", "SmootherResult", "FixedLagResult", "FixedPointResult"]
+__all__ = [
+    "LinearGaussian",
+    "FilterResult",
+    "SmootherResult",
+    "FixedLagResult",
+    "FixedPointResult",
+    "Forecast",
+    "Simulation",
+]
 
 _FORMS = ("joseph", "standard")
 
@@ -50,14 +58,53 @@ class FilterResult:
     """x(T|T-1): the prediction one step past the data, shape (n,)."""
     P_next: np.ndarray
     """P(T|T-1), shape (n, n)."""
+    model: Optional["LinearGaussian"] = field(default=None, repr=False, compare=False)
+    """The model that was filtered."""
 
     def __repr__(self) -> str:
         T, n = self.x_filt.shape
         m = self.innov.shape[1]
         return f"FilterResult(T={T}, n={n}, m={m}, loglik={self.loglik:.6g})"
 
+    def forecast(self, steps: int, u=None) -> "Forecast":
+        """Forecast the `steps` steps after the data, T..T+steps-1, from x(T|T-1), P(T|T-1)
+        (u, shape (steps, k), holds the future inputs u(T), ...)."""
+        if self.model is None:
+            raise _kfast.KfastError("forecast: this FilterResult has no model attached")
+        return self.model.forecast(self.x_next, self.P_next, steps, u=u)
 
-_FILTER_FIELDS = tuple(FilterResult.__dataclass_fields__)
+
+_FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k != "model")
+
+
+@dataclass(frozen=True, repr=False)
+class Forecast:
+    """k-step forecasts (Söderström (6.38)-(6.42)). Row j forecasts step t+j from data up to
+    t-1. Unpacks as ``mean, cov = model.forecast(...)`` (the state's)."""
+
+    x: np.ndarray
+    """State means x(t+j|t-1), shape (steps, n)."""
+    P: np.ndarray
+    """State covariances P(t+j|t-1), shape (steps, n, n)."""
+    y: np.ndarray
+    """Output means H x + D u, shape (steps, m)."""
+    y_cov: np.ndarray
+    """Output covariances H P H' + R, shape (steps, m, m)."""
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter((self.x, self.P))
+
+    def __repr__(self) -> str:
+        return f"Forecast(steps={len(self.x)})"
+
+
+class Simulation(NamedTuple):
+    """A sample path: ``x, y = model.simulate(...)``."""
+
+    x: np.ndarray
+    """States x[0..T-1], shape (T, n)."""
+    y: np.ndarray
+    """Outputs y[0..T-1], shape (T, m)."""
 
 
 @dataclass(frozen=True, repr=False)
@@ -128,7 +175,7 @@ class LinearGaussian:
         for name in ("F", "H", "Q", "R"):
             if given[name] is None:
                 raise _kfast.KfastError(f"{name}: required (got None)")
-        arrays = {k: (None if v is None else frozen_copy(k, v)) for k, v in given.items()}
+        arrays = {k: (None if v is None else frozen_copy(k, v, scalar_shape=(1, 1))) for k, v in given.items()}
         self._core = _kfast.LinearGaussian(**arrays)
         self.F: np.ndarray = arrays["F"]
         self.H: np.ndarray = arrays["H"]
@@ -175,7 +222,7 @@ class LinearGaussian:
         """
         args = self._data(y, x0, P0, u)
         out = self._core.filter(*args, form=_form(form))
-        return FilterResult(**out)
+        return FilterResult(**out, model=self)
 
     def loglik(self, y, x0, P0, u=None, form: str = "joseph") -> float:
         """The log-likelihood sum_t log N(y(t); H x(t|t-1) + D u(t), S(t)) alone (Söderström
@@ -194,7 +241,7 @@ class LinearGaussian:
         A singular P(t+1|t) is handled with its pseudo-inverse.
         """
         out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form))
-        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS})
+        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS}, model=self)
         return SmootherResult(filter=filt, **out)
 
     def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:
@@ -217,6 +264,56 @@ class LinearGaussian:
         out = self._core.smooth_fixed_point(y, x0, P0, t_point, u=u, form=_form(form))
         return FixedPointResult(t_point=t_point, **out)
 
+    def forecast(self, x, P, steps: int, u=None) -> Forecast:
+        """Forecast `steps` steps from a one-step prediction (x, P) = x(t|t-1), P(t|t-1), such
+        as ``FilterResult.x_next`` or ``KalmanFilter.x`` after ``predict()``. Row j is the
+        forecast of step t+j (row 0 is (x, P) itself); u, shape (steps, k), holds u(t+j).
+
+        x(t+j+1|t-1) = F x(t+j|t-1) + B u(t+j), P(t+j+1|t-1) = F P F' + Q (Söderström
+        (6.38)-(6.42)); y forecasts H x + D u with covariance H P H' + R. Constant models only.
+        Unpacks as ``mean, cov = model.forecast(...)``.
+        """
+        steps = _index("steps", steps)
+        x = as_float64("x", x)
+        P = as_float64("P", P)
+        if self.n_states == 1:
+            x = x.reshape(1) if x.size == 1 else x
+            P = P.reshape(1, 1) if P.size == 1 else P
+        if u is not None:
+            u = _column_if_1d(as_float64("u", u), self.n_inputs)
+        return Forecast(**self._core.forecast(x, P, steps, u=u))
+
+    def simulate(self, T: int, x0, P0, u=None, seed=None) -> Simulation:
+        """Draw a sample path of T steps: x[0] ~ N(x0, P0), (w[t], v[t]) ~ N(0, [[Q, N],
+        [N', R]]) jointly (so N is honoured), y[t] = H x[t] + D u[t] + v[t],
+        x[t+1] = F x[t] + B u[t] + w[t]. ``seed`` (an int or a numpy Generator) makes the
+        draw reproducible. Returns ``Simulation(x, y)``, shapes (T, n) and (T, m).
+        """
+        T = _index("T", T)
+        if T == 0:
+            raise _kfast.KfastError("T: must be >= 1, got 0")
+        if self.steps is not None and T != self.steps:
+            raise _kfast.KfastError(f"T: is {T} but the model's per-step matrices have {self.steps} steps")
+        y_dummy, x0, P0, u = self._data(np.zeros((T, self.n_obs)), x0, P0, u)
+        rng = np.random.default_rng(seed)
+        n, m = self.n_states, self.n_obs
+        x_init = _psd_sqrt(P0) @ rng.standard_normal(n) + x0
+        z = rng.standard_normal((T, n + m))
+        wv = np.einsum("...ij,...j->...i", _psd_sqrt(self._joint_noise_cov()), z)
+        w, v = np.ascontiguousarray(wv[:, :n]), np.ascontiguousarray(wv[:, n:])
+        x, y = self._core.propagate(x_init, w, v, u=u)
+        return Simulation(x, y)
+
+    def _joint_noise_cov(self) -> np.ndarray:
+        """[[Q, N], [N', R]], shape (n+m, n+m) or (T, n+m, n+m) for per-step models."""
+        n, m = self.n_states, self.n_obs
+        N = self.N if self.N is not None else np.zeros((n, m))
+        lead = () if self.steps is None else (self.steps,)
+        Q, R, N = (np.broadcast_to(a, lead + a.shape[-2:]) for a in (self.Q, self.R, N))
+        top = np.concatenate([Q, N], axis=-1)
+        bottom = np.concatenate([np.swapaxes(N, -1, -2), R], axis=-1)
+        return np.concatenate([top, bottom], axis=-2)
+
     def _data(self, y, x0, P0, u):
         y = _column_if_1d(as_float64("y", y), self.n_obs)
         x0 = as_float64("x0", x0)
@@ -227,6 +324,13 @@ class LinearGaussian:
         if u is not None:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
         return y, x0, P0, u
+
+
+def _psd_sqrt(C: np.ndarray) -> np.ndarray:
+    """A square root L with L L' = C for symmetric PSD C (or a stack), via the eigenvalues so
+    that singular covariances (e.g. Q = 0, or a singular joint [[Q, N], [N', R]]) work."""
+    lam, V = np.linalg.eigh(C)
+    return V * np.sqrt(np.clip(lam, 0.0, None))[..., None, :]
 
 
 def _column_if_1d(a: np.ndarray, width: int) -> np.ndarray:

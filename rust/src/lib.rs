@@ -16,6 +16,10 @@
 //!   likelihood alone. [`Series`] wraps the row-major `(T, m)` data and `(T, k)` inputs.
 //! - [`KalmanFilter`]: the same filter one step at a time for streams.
 //! - [`UpdateForm`]: Joseph (default) or standard covariance update.
+//! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances), [`smooth_fixed_lag`] and
+//!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
+//! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
+//! - [`propagate`]: sample paths from given noise (the core of simulation).
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -30,14 +34,18 @@
 mod dense;
 pub mod error;
 pub mod filter;
+pub mod forecast;
 pub mod model;
 #[cfg(feature = "python")]
 mod python;
+pub mod simulate;
 pub mod smoother;
 
 pub use error::{Error, Result};
 pub use filter::{filter, filter_into, loglik, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm};
+pub use forecast::{forecast, Forecast};
 pub use model::{LinearGaussian, Matrices, StepMatrix};
+pub use simulate::propagate;
 pub use smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult, SmootherResult,
 };

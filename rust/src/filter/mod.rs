@@ -294,7 +294,7 @@ fn check_observation(y: &[f64], step: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-fn check_input_series(model: &LinearGaussian, u: Option<Series<'_>>, steps: usize) -> Result<()> {
+pub(crate) fn check_input_series(model: &LinearGaussian, u: Option<Series<'_>>, steps: usize) -> Result<()> {
     match u {
         Some(u) => {
             check_input_width(model, u.width)?;

@@ -2,12 +2,12 @@
 
 use std::sync::Arc;
 
-use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::{filter_outputs, non_negative, parse_form, prior, series, KfastError, OutArrays};
-use crate::filter;
+use super::{data, filter_outputs, non_negative, parse_form, prior, series, to_array, KfastError, OutArrays};
+use crate::filter::{self, Series};
 use crate::model::{self, Matrices, StepMatrix};
 use crate::smoother::{self, FilteredView, SmootherOutputs};
 
@@ -25,6 +25,7 @@ pub(super) struct PyLinearGaussian {
 }
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
+type OutArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 
 #[pymethods]
 impl PyLinearGaussian {
@@ -237,5 +238,58 @@ impl PyLinearGaussian {
         dict.set_item("x", super::to_array(py, &res.x, &[rows, n])?)?;
         dict.set_item("P", super::to_array(py, &res.p, &[rows, n, n])?)?;
         Ok(dict)
+    }
+
+    /// k-step forecasts from the one-step prediction (x, P); dict with x, P, y, y_cov.
+    #[pyo3(signature = (x, P, steps, u=None))]
+    #[allow(non_snake_case)]
+    fn forecast<'py>(
+        &self,
+        py: Python<'py>,
+        x: Array<'py>,
+        P: Array<'py>,
+        steps: i64,
+        u: Option<Array<'py>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let steps = non_negative("steps", steps)?;
+        let (n, m) = (self.inner.n_states(), self.inner.n_obs());
+        let x = data("x", &x, 1)?;
+        let p = data("P", &P, 2)?;
+        let u = match &u {
+            Some(u) => Some(Series::new("u", data("u", u, 2)?, u.shape()[0], u.shape()[1])?),
+            None => None,
+        };
+        let model = &*self.inner;
+        let fc = py.detach(|| crate::forecast(model, x, p, steps, u))?;
+        let dict = PyDict::new(py);
+        dict.set_item("x", to_array(py, &fc.x, &[steps, n])?)?;
+        dict.set_item("P", to_array(py, &fc.p, &[steps, n, n])?)?;
+        dict.set_item("y", to_array(py, &fc.y, &[steps, m])?)?;
+        dict.set_item("y_cov", to_array(py, &fc.y_cov, &[steps, m, m])?)?;
+        Ok(dict)
+    }
+
+    /// States and outputs driven by the given noise w (T, n), v (T, m) from x_init.
+    #[pyo3(signature = (x_init, w, v, u=None))]
+    fn propagate<'py>(
+        &self,
+        py: Python<'py>,
+        x_init: Array<'py>,
+        w: Array<'py>,
+        v: Array<'py>,
+        u: Option<Array<'py>>,
+    ) -> PyResult<(OutArray<'py>, OutArray<'py>)> {
+        let (n, m) = (self.inner.n_states(), self.inner.n_obs());
+        let x_init = data("x_init", &x_init, 1)?;
+        let ws = Series::new("w", data("w", &w, 2)?, w.shape()[0], w.shape()[1])?;
+        let vs = Series::new("v", data("v", &v, 2)?, v.shape()[0], v.shape()[1])?;
+        let us = match &u {
+            Some(u) => Some(Series::new("u", data("u", u, 2)?, u.shape()[0], u.shape()[1])?),
+            None => None,
+        };
+        let model = &*self.inner;
+        let (xs, ys) = py.detach(|| crate::propagate(model, x_init, ws, vs, us))?;
+        let steps = ws.steps();
+        Ok((to_array(py, &xs, &[steps, n])?, to_array(py, &ys, &[steps, m])?))
     }
 }
