@@ -24,6 +24,8 @@ from kfast._model import (
     SmootherResult,
 )
 
+from kfast.estimation import EMResult, FitResult, fit
+
 __version__ = "0.1.0"
 
 __all__ = [
@@ -36,6 +38,9 @@ __all__ = [
     "Simulation",
     "KalmanFilter",
     "FixedLagSmoother",
+    "fit",
+    "FitResult",
+    "EMResult",
     "KfastError",
     "InnovationCovarianceError",
 ]

@@ -304,6 +304,21 @@ class LinearGaussian:
         x, y = self._core.propagate(x_init, w, v, u=u)
         return Simulation(x, y)
 
+    def em(self, y, x0, P0, n_iter: int = 10, fit=("F", "H", "Q", "R", "x0", "P0"), u=None, tol=None, progress=False):
+        """Expectation-maximization (Shumway & Stoffer) of the parameters named in ``fit``
+        (any of "F", "H", "Q", "R", "x0", "P0"), starting from this model and (x0, P0).
+
+        E-step: the RTS smoother with lag-one covariances (in Rust). M-step: closed forms, in
+        pykalman's order H, R, F, Q, x0, P0. B and D stay fixed; N is not supported. Missing
+        data: rows with nothing observed drop out of the H and R updates; partly observed rows
+        use the conditional moments of their missing components (Shumway & Stoffer 2000).
+        The log-likelihood never decreases. ``tol`` stops early when its relative change is
+        below tol; ``progress`` prints the iterations to stderr. Returns ``EMResult``.
+        """
+        from kfast.estimation import em
+
+        return em(self, y, x0, P0, n_iter=n_iter, fit=fit, u=u, tol=tol, progress=progress)
+
     def _joint_noise_cov(self) -> np.ndarray:
         """[[Q, N], [N', R]], shape (n+m, n+m) or (T, n+m, n+m) for per-step models."""
         n, m = self.n_states, self.n_obs

@@ -15,3 +15,7 @@ from kfast.reference.forecast import forecast  # noqa: E402
 from kfast.reference.simulate import propagate  # noqa: E402
 
 __all__ += ["forecast", "propagate"]
+
+from kfast.reference.estimation import em_step  # noqa: E402
+
+__all__ += ["em_step"]

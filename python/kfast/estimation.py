@@ -1,0 +1,289 @@
+"""Parameter estimation: maximum likelihood (``fit``) and expectation-maximization (``em``).
+
+Both evaluate the likelihood with the Rust filter/smoother; the optimizer loop (scipy) and the
+EM's closed-form M-step run in Python/NumPy, vectorized over time.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from dataclasses import dataclass
+from typing import Any, Callable, Optional, Sequence
+
+import numpy as np
+
+from kfast._arrays import as_float64
+from kfast._kfast import KfastError
+from kfast._model import LinearGaussian
+
+__all__ = ["fit", "FitResult", "em", "EMResult"]
+
+
+@dataclass(frozen=True, repr=False)
+class FitResult:
+    """Maximum-likelihood estimates from ``kfast.fit``."""
+
+    theta: np.ndarray
+    """The estimates."""
+    se: np.ndarray
+    """Standard errors: sqrt(diag(cov)); NaN where the Hessian gives no information."""
+    cov: np.ndarray
+    """Asymptotic covariance of theta: the inverse of minus the numerical Hessian of the
+    log-likelihood at theta."""
+    loglik: float
+    """Log-likelihood at theta."""
+    model: LinearGaussian
+    """build(theta)'s model ..."""
+    x0: np.ndarray
+    """... prior mean ..."""
+    P0: np.ndarray
+    """... and prior covariance."""
+    optimizer: Any
+    """The scipy.optimize.OptimizeResult."""
+
+    @property
+    def success(self) -> bool:
+        return bool(self.optimizer.success)
+
+    def __repr__(self) -> str:
+        return f"FitResult(theta={np.array2string(self.theta, precision=4)}, loglik={self.loglik:.6g}, success={self.success})"
+
+
+def _build(build: Callable, theta: np.ndarray, where: str):
+    """build(theta) -> (model, x0, P0), with errors that say they came from `build`."""
+    try:
+        out = build(theta)
+    except KfastError as exc:
+        raise KfastError(f"build: {where} gave an invalid model: {exc}") from exc
+    if not (isinstance(out, tuple) and len(out) == 3 and isinstance(out[0], LinearGaussian)):
+        got = type(out).__name__ if not isinstance(out, tuple) else f"a tuple of {len(out)}"
+        raise KfastError(f"build: must return (kfast.LinearGaussian, x0, P0), got {got} at {where}")
+    return out
+
+
+def fit(
+    build: Callable[[np.ndarray], tuple],
+    theta0,
+    y,
+    u=None,
+    *,
+    method: str = "L-BFGS-B",
+    bounds: Optional[Sequence] = None,
+    options: Optional[dict] = None,
+) -> FitResult:
+    """Maximum likelihood over parameters theta: maximizes ``model.loglik(y, x0, P0, u)`` where
+    ``(model, x0, P0) = build(theta)``, with ``scipy.optimize.minimize(method, bounds)``.
+
+    The log-likelihood is the exact Gaussian one of the prior x(0|-1) ~ N(x0, P0) (Söderström
+    (6.142)); missing data (NaN) are handled. Parameters where ``build`` raises a kfast error
+    (e.g. a negative variance) score -inf; prefer transformations (exp, tanh) that keep every
+    theta valid. Standard errors come from the numerical Hessian (central differences) at the
+    optimum.
+    """
+    from scipy.optimize import minimize
+
+    theta0 = as_float64("theta0", theta0).ravel()
+    y = as_float64("y", y)
+    u = None if u is None else as_float64("u", u)
+    model0, x00, P00 = _build(build, theta0, "theta0")
+    ll0 = model0.loglik(y, x00, P00, u=u)
+    if not np.isfinite(ll0):
+        raise KfastError(f"build: the log-likelihood at theta0 is not finite ({ll0})")
+
+    def loglik(theta):
+        try:
+            model, x0, P0 = _build(build, theta, "theta")
+            return model.loglik(y, x0, P0, u=u)
+        except KfastError:
+            return -np.inf
+
+    def objective(theta):
+        ll = loglik(theta)
+        return -ll if np.isfinite(ll) else np.inf
+
+    opt = minimize(objective, theta0, method=method, bounds=bounds, options=options)
+    theta = np.asarray(opt.x, dtype=float)
+    hess = _hessian(loglik, theta)
+    cov, se = _covariance(hess)
+    model, x0, P0 = _build(build, theta, "the optimum")
+    return FitResult(theta=theta, se=se, cov=cov, loglik=float(-opt.fun), model=model, x0=x0, P0=P0, optimizer=opt)
+
+
+def _hessian(f: Callable, theta: np.ndarray) -> np.ndarray:
+    """Central-difference Hessian of f at theta, step 1e-4 max(1, |theta_i|)."""
+    k = len(theta)
+    h = 1e-4 * np.maximum(1.0, np.abs(theta))
+    H = np.zeros((k, k))
+    f0 = f(theta)
+    for i in range(k):
+        ei = np.zeros(k)
+        ei[i] = h[i]
+        H[i, i] = (f(theta + ei) - 2 * f0 + f(theta - ei)) / h[i] ** 2
+        for j in range(i):
+            ej = np.zeros(k)
+            ej[j] = h[j]
+            H[i, j] = H[j, i] = (
+                f(theta + ei + ej) - f(theta + ei - ej) - f(theta - ei + ej) + f(theta - ei - ej)
+            ) / (4 * h[i] * h[j])
+    return H
+
+
+def _covariance(hess: np.ndarray):
+    info = -hess
+    if not np.isfinite(info).all():
+        warnings.warn("fit: the Hessian is not finite at the optimum (on a boundary?); no standard errors", RuntimeWarning, stacklevel=3)
+        nan = np.full(info.shape, np.nan)
+        return nan, np.full(len(info), np.nan)
+    eig = np.linalg.eigvalsh((info + info.T) / 2)
+    if eig[0] <= 0:
+        warnings.warn(
+            "fit: minus the Hessian is not positive definite at the optimum; standard errors of "
+            "unidentified directions are NaN",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    cov = np.linalg.pinv(info)
+    diag = np.diag(cov)
+    se = np.where(diag > 0, np.sqrt(np.abs(diag)), np.nan)
+    return cov, se
+
+
+@dataclass(frozen=True, repr=False)
+class EMResult:
+    """The model estimated by ``LinearGaussian.em``."""
+
+    model: LinearGaussian
+    x0: np.ndarray
+    P0: np.ndarray
+    loglik: np.ndarray
+    """Log-likelihood before each iteration and, last, at the result: non-decreasing."""
+    n_iter: int
+    """Iterations made."""
+    converged: bool
+    """Whether the change of the log-likelihood fell below ``tol``."""
+
+    def __repr__(self) -> str:
+        return f"EMResult(n_iter={self.n_iter}, loglik={self.loglik[-1]:.6g}, converged={self.converged})"
+
+
+EM_PARAMETERS = ("F", "H", "Q", "R", "x0", "P0")
+
+
+def em(
+    model: LinearGaussian,
+    y,
+    x0,
+    P0,
+    n_iter: int = 10,
+    fit: Sequence[str] = EM_PARAMETERS,
+    u=None,
+    tol: Optional[float] = None,
+    progress: bool = False,
+) -> EMResult:
+    """Expectation-maximization (Shumway & Stoffer) for a constant model; see
+    ``LinearGaussian.em``."""
+    fit = tuple(fit)
+    unknown = set(fit) - set(EM_PARAMETERS)
+    if unknown:
+        raise KfastError(f"fit: unknown parameters {sorted(unknown)}; choose from {EM_PARAMETERS}")
+    if model.steps is not None:
+        raise KfastError("model: EM needs constant matrices (this model has per-step ones)")
+    if model.N is not None:
+        raise KfastError("model: EM does not support correlated noise N")
+    if isinstance(n_iter, bool) or not isinstance(n_iter, (int, np.integer)) or n_iter < 0:
+        raise KfastError(f"n_iter: expected an integer >= 0, got {n_iter!r}")
+    y = as_float64("y", y)
+    y = y[:, None] if y.ndim == 1 and model.n_obs == 1 else y
+    u = None if u is None else as_float64("u", u)
+    F, H, Q, R = (np.array(a) for a in (model.F, model.H, model.Q, model.R))
+    B, D = model.B, model.D
+    x0 = np.array(as_float64("x0", x0), dtype=float).reshape(model.n_states)
+    P0 = np.array(as_float64("P0", P0), dtype=float).reshape(model.n_states, model.n_states)
+    T = len(y)
+    a = np.zeros((T, model.n_states)) if B is None else u @ B.T  # transition offsets B u(t)
+    d = np.zeros((T, model.n_obs)) if D is None else u @ D.T  # observation offsets D u(t)
+
+    history = []  # log-likelihood of the parameters entering each iteration
+    converged = False
+    iterations = 0
+    while iterations < n_iter:
+        sm = LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u)
+        history.append(sm.filter.loglik)
+        if progress:
+            print(f"\rEM {iterations + 1}/{n_iter}  loglik {history[-1]:.6f}", end="", file=sys.stderr, flush=True)
+        if tol is not None and len(history) > 1 and abs(history[-1] - history[-2]) <= tol * max(1.0, abs(history[-1])):
+            converged = True
+            break
+        F, H, Q, R, x0, P0 = _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit)
+        iterations += 1
+    final = LinearGaussian(F, H, Q, R, B=B, D=D)
+    if not converged:
+        history.append(final.loglik(y, x0, P0, u=u))
+    if progress:
+        print(file=sys.stderr)
+    return EMResult(model=final, x0=x0, P0=P0, loglik=np.array(history), n_iter=iterations, converged=converged)
+
+
+def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):
+    """One M-step: closed-form maximizers of the expected complete-data log-likelihood, in
+    pykalman's order (H, R, F, Q, x0, P0), each using the ones updated before it."""
+    xs, Ps, Pl = sm.x_smooth, sm.P_smooth, sm.P_lag1
+    Exx = Ps + xs[:, :, None] * xs[:, None, :]  # E[x x' | Y]
+    M, c, Rc, used = _observation_moments(y, d, H, R)
+    Eyx = M @ Exx + c[:, :, None] * xs[:, None, :]  # E[y x' | Y]
+    if "H" in fit:
+        lhs = (Eyx - d[:, :, None] * xs[:, None, :])[used].sum(axis=0)
+        H = lhs @ np.linalg.pinv(Exx[used].sum(axis=0))
+    if "R" in fit:
+        A = M - H  # y - H x - d = A x + e (+ noise of the missing part)
+        e = c - d
+        Ax = np.einsum("tij,tj->ti", A, xs)
+        terms = A @ Exx @ np.swapaxes(A, 1, 2) + Ax[:, :, None] * e[:, None, :] + e[:, :, None] * Ax[:, None, :]
+        terms += e[:, :, None] * e[:, None, :] + Rc
+        R = _sym(terms[used].mean(axis=0))
+    if "F" in fit:
+        lhs = (Pl[1:] + xs[1:, :, None] * xs[:-1, None, :] - a[:-1, :, None] * xs[:-1, None, :]).sum(axis=0)
+        F = lhs @ np.linalg.pinv(Exx[:-1].sum(axis=0))
+    if "Q" in fit and len(xs) > 1:
+        err = xs[1:] - xs[:-1] @ F.T - a[:-1]
+        PlF = Pl[1:] @ F.T
+        terms = err[:, :, None] * err[:, None, :] + F @ Ps[:-1] @ F.T + Ps[1:] - PlF - np.swapaxes(PlF, 1, 2)
+        Q = _sym(terms.mean(axis=0))
+    if "x0" in fit:
+        x0 = xs[0].copy()
+    if "P0" in fit:
+        dx = xs[0] - x0
+        P0 = _sym(Ps[0] + np.outer(dx, dx))
+    return F, H, Q, R, x0, P0
+
+
+def _observation_moments(y, d, H, R):
+    """y[t] given Y and x[t] under the current (H, R) is M x + c + noise of covariance Rc:
+    observed components are known (M = 0, c = y), missing ones are regressed on the observed
+    residual, y_q = H_q x + d_q + G (y_o - H_o x - d_o) + eta with G = R_qo R_oo^-1 (Shumway &
+    Stoffer's missing-data EM). Rows with nothing observed are left out (``used`` is False)."""
+    T, m = y.shape
+    n = H.shape[1]
+    M = np.zeros((T, m, n))
+    c = np.where(np.isnan(y), 0.0, y)
+    Rc = np.zeros((T, m, m))
+    observed = ~np.isnan(y)
+    used = observed.any(axis=1)
+    partial = used & ~observed.all(axis=1)
+    if partial.any():
+        patterns, which = np.unique(observed[partial], axis=0, return_inverse=True)
+        rows = np.flatnonzero(partial)
+        for p, o in enumerate(patterns):
+            t = rows[which.ravel() == p]
+            q = ~o
+            G = R[np.ix_(q, o)] @ np.linalg.inv(R[np.ix_(o, o)])
+            M[np.ix_(t, np.flatnonzero(q), np.arange(n))] = H[q] - G @ H[o]
+            resid = y[np.ix_(t, np.flatnonzero(o))] - d[np.ix_(t, np.flatnonzero(o))]
+            c[np.ix_(t, np.flatnonzero(q))] = d[np.ix_(t, np.flatnonzero(q))] + resid @ G.T
+            Rc[np.ix_(t, np.flatnonzero(q), np.flatnonzero(q))] = R[np.ix_(q, q)] - G @ R[np.ix_(o, q)]
+    return M, c, Rc, used
+
+
+def _sym(A: np.ndarray) -> np.ndarray:
+    return (A + A.T) / 2
