@@ -86,3 +86,19 @@ def test_simulate_with_singular_noise():
     x, y = model.simulate(50, 3.0, 0.0, seed=0)
     np.testing.assert_array_equal(x, 3.0)
     assert np.std(y) > 0.5
+
+
+def test_forecast_and_simulate_arguments_are_checked():
+    model = kfast.LinearGaussian(F=0.5, H=1.0, Q=1.0, R=1.0)
+    with pytest.raises(kfast.KfastError, match="^steps: must be >= 0, got -1"):
+        model.forecast(0.0, 1.0, -1)
+    with pytest.raises(kfast.KfastError, match="^P: not positive semidefinite"):
+        model.forecast(0.0, -1.0, 3)
+    with pytest.raises(kfast.KfastError, match="^T: must be >= 0, got -5"):
+        model.simulate(-5, 0.0, 1.0)
+    tv = kfast.LinearGaussian(F=np.full((4, 1, 1), 0.5), H=1.0, Q=1.0, R=1.0)
+    with pytest.raises(kfast.KfastError, match="^model: forecasting needs constant matrices"):
+        tv.forecast(0.0, 1.0, 3)
+    with pytest.raises(kfast.KfastError, match="^T: is 5 but the model's per-step matrices have 4 steps"):
+        tv.simulate(5, 0.0, 1.0)
+    assert model.forecast(0.0, 1.0, 0).x.shape == (0, 1)

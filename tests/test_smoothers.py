@@ -11,7 +11,7 @@ from pykalman import KalmanFilter as PKKalmanFilter
 from statsmodels.tsa.statespace.kalman_smoother import KalmanSmoother
 
 import kfast
-from kfast.reference import fixed_lag_augmented, map_smoother, rts_smoother
+from kfast.reference import fixed_lag_augmented, fixed_point_augmented, map_smoother, rts_smoother
 from modelgen import random_case
 
 OPTIONS = list(itertools.product([False, True], [False, True], [False, True], ["none", "rows", "partial"]))
@@ -156,6 +156,32 @@ def test_fixed_point_equals_rts_on_growing_data(seed):
         part = kfast.LinearGaussian(**sub).smooth(case.y[: t + 1], case.x0, case.P0, u=u)
         close(res.x[j], part.x_smooth[s], f"x({s}|{t})")
         close(res.P[j], part.P_smooth[s], f"P({s}|{t})")
+
+
+@pytest.mark.parametrize("seed", range(48))
+def test_fixed_point_matches_the_augmented_filter(seed):
+    """Söderström (6.45): the filter on [x(t); x(s)] with x(s) held constant."""
+    case = case_for(seed, T=12)
+    s = (3 * seed) % 12
+    res = kfast.LinearGaussian(**case.model).smooth_fixed_point(case.y, case.x0, case.P0, s, u=case.u)
+    xa, Pa = fixed_point_augmented(**case.model, y=case.y, x0=case.x0, P0=case.P0, t_point=s, u=case.u)
+    close(res.x, xa, f"x s={s} {case.info}")
+    close(res.P, Pa, f"P s={s} {case.info}")
+
+
+def test_smoother_arguments_are_checked():
+    case = case_for(3, T=8)
+    model = kfast.LinearGaussian(**case.model)
+    with pytest.raises(kfast.KfastError, match="^lag: must be >= 0, got -1"):
+        model.smooth_fixed_lag(case.y, case.x0, case.P0, -1, u=case.u)
+    with pytest.raises(kfast.KfastError, match="^lag: expected an integer"):
+        model.smooth_fixed_lag(case.y, case.x0, case.P0, 1.5, u=case.u)
+    with pytest.raises(kfast.KfastError, match=r"^t_point: must be a step of the data, 0 ≤ t_point < T = 8, got 8"):
+        model.smooth_fixed_point(case.y, case.x0, case.P0, 8, u=case.u)
+    with pytest.raises(kfast.KfastError, match="^t_point: must be >= 0, got -2"):
+        model.smooth_fixed_point(case.y, case.x0, case.P0, -2, u=case.u)
+    with pytest.raises(kfast.KfastError, match="^lag: must be ≥ 0, got -3"):
+        kfast.FixedLagSmoother(model, case.x0, case.P0, -3)
 
 
 @pytest.mark.parametrize("seed", range(16))

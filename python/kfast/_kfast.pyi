@@ -49,6 +49,47 @@ class LinearGaussian:
         form: str = "joseph",
     ) -> float: ...
 
+    def smooth(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+        form: str = "joseph",
+    ) -> dict[str, Any]: ...
+    def smooth_fixed_lag(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        lag: int,
+        u: Optional[NDArray[np.float64]] = None,
+        form: str = "joseph",
+    ) -> dict[str, NDArray[np.float64]]: ...
+    def smooth_fixed_point(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        t_point: int,
+        u: Optional[NDArray[np.float64]] = None,
+        form: str = "joseph",
+    ) -> dict[str, NDArray[np.float64]]: ...
+    def forecast(
+        self,
+        x: NDArray[np.float64],
+        P: NDArray[np.float64],
+        steps: int,
+        u: Optional[NDArray[np.float64]] = None,
+    ) -> dict[str, NDArray[np.float64]]: ...
+    def propagate(
+        self,
+        x_init: NDArray[np.float64],
+        w: NDArray[np.float64],
+        v: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
 class KalmanFilter:
     """Streaming Kalman filter from the prior (x0, P0) = x(0|-1), P(0|-1).
 
@@ -68,3 +109,27 @@ class KalmanFilter:
     def t(self) -> int: ...
     @property
     def loglik(self) -> float: ...
+
+class FixedLagSmoother:
+    """Online fixed-lag smoother from the prior (x0, P0) = x(0|-1), P(0|-1).
+
+    After update at step t: x_lagged, P_lagged are x(t-lag|t), P(t-lag|t) (None while
+    t < lag); x_window, P_window hold x(t-i|t) for i = 0..min(t, lag).
+    """
+
+    def __init__(self, model: Any, x0: ArrayLike, P0: ArrayLike, lag: int, form: str = "joseph") -> None: ...
+    def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    def predict(self, u: Optional[ArrayLike] = None) -> None: ...
+    def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    @property
+    def lag(self) -> int: ...
+    @property
+    def t(self) -> int: ...
+    @property
+    def x_lagged(self) -> Optional[NDArray[np.float64]]: ...
+    @property
+    def P_lagged(self) -> Optional[NDArray[np.float64]]: ...
+    @property
+    def x_window(self) -> NDArray[np.float64]: ...
+    @property
+    def P_window(self) -> NDArray[np.float64]: ...

@@ -7,9 +7,9 @@ from kfast.reference.filter import kalman_filter
 
 __all__ = ["kalman_filter"]
 
-from kfast.reference.smoother import fixed_lag_augmented, map_smoother, rts_smoother  # noqa: E402
+from kfast.reference.smoother import fixed_lag_augmented, fixed_point_augmented, map_smoother, rts_smoother  # noqa: E402
 
-__all__ += ["rts_smoother", "map_smoother", "fixed_lag_augmented"]
+__all__ += ["rts_smoother", "map_smoother", "fixed_lag_augmented", "fixed_point_augmented"]
 
 from kfast.reference.forecast import forecast  # noqa: E402
 from kfast.reference.simulate import propagate  # noqa: E402

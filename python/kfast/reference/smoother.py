@@ -121,3 +121,28 @@ def fixed_lag_augmented(F, H, Q, R, y, x0, P0, lag, B=None, D=None, N=None, u=No
         xs[s] = f["x_filt"][t][i * n : (i + 1) * n]
         Ps[s] = f["P_filt"][t][i * n : (i + 1) * n, i * n : (i + 1) * n]
     return xs, Ps
+
+
+def fixed_point_augmented(F, H, Q, R, y, x0, P0, t_point, B=None, D=None, N=None, u=None):
+    """x(s | t) and P(s | t) for s = t_point and t = s..T-1, from the filter on the augmented
+    state z = [x(t); x_s] with x_s(t+1) = x_s(t) = x(s) (Söderström (6.45)): run the plain
+    filter up to s, then augment with x_s equal to x(s) (prior covariance [[P, P], [P, P]])."""
+    y = np.asarray(y, dtype=float)
+    T, m = y.shape
+    n, s = len(x0), t_point
+    head = kalman_filter(
+        F, H, Q, R, y[:s] if s else y[:1], x0, P0, B=B, D=D, N=N, u=None if u is None else u[: max(s, 1)]
+    )
+    x_s, P_s = (head["x_next"], head["P_next"]) if s else (np.asarray(x0, float), np.asarray(P0, float))
+
+    Fa = np.stack([np.block([[_at(F, t), np.zeros((n, n))], [np.zeros((n, n)), np.eye(n)]]) for t in range(s, T)])
+    Qa = np.stack([np.block([[_at(Q, t), np.zeros((n, n))], [np.zeros((n, n)), np.zeros((n, n))]]) for t in range(s, T)])
+    Ha = np.stack([np.hstack([_at(H, t), np.zeros((m, n))]) for t in range(s, T)])
+    Ra = np.stack([_at(R, t) for t in range(s, T)])
+    Na = None if N is None else np.stack([np.vstack([_at(N, t), np.zeros((n, m))]) for t in range(s, T)])
+    Ba = None if B is None else np.stack([np.vstack([_at(B, t), np.zeros((n, _at(B, t).shape[1]))]) for t in range(s, T)])
+    Da = None if D is None else np.stack([_at(D, t) for t in range(s, T)])
+    za = np.concatenate([x_s, x_s])
+    Pa = np.block([[P_s, P_s], [P_s, P_s]])
+    f = kalman_filter(Fa, Ha, Qa, Ra, y[s:], za, Pa, B=Ba, D=Da, N=Na, u=None if u is None else u[s:])
+    return f["x_filt"][:, n:], f["P_filt"][:, n:, n:]
