@@ -1,8 +1,9 @@
 #!/usr/bin/env python
-"""kfast benchmark harness: W1 (filter), W3 (log-likelihood), W7 (streaming).
+"""kfast benchmark harness: W1 (filter), W2 (RTS smoother), W3 (log-likelihood),
+W7 (streaming).
 
-    python benches/bench_filter.py            # full run (~45-60 s on 2 cores)
-    python benches/bench_filter.py --quick    # smoke run (~10-15 s)
+    python benches/bench_filter.py            # full run (~2 min on 2 cores)
+    python benches/bench_filter.py --quick    # smoke run (~20-30 s)
     python benches/bench_filter.py --write    # full run, then rewrite the
                                               # results block of BENCHMARKS.md
 
@@ -200,6 +201,15 @@ def mk_kfast_filter(y, form):
     return lambda: m.filter(y, x0, P0, form=form)
 
 
+def mk_kfast_smooth(y, form):
+    kf = kfast_module()
+    F, H, Q, R, x0, P0 = cv_model()
+    m = kf.LinearGaussian(F, H, Q, R)
+    if not hasattr(m, "smooth"):
+        raise Unavailable("kfast has no LinearGaussian.smooth (rebuild: pip install -e .)")
+    return lambda: m.smooth(y, x0, P0, form=form)
+
+
 def mk_kfast_loglik(y, form=None):
     kf = kfast_module()
     F, H, Q, R, x0, P0 = cv_model()
@@ -296,6 +306,72 @@ def mk_sm_filter_tuned(y, steady_state=True):
     return run
 
 
+def _sm_ks(y, **kw):
+    """Same set-up as _sm_kf, on statsmodels' KalmanSmoother."""
+    kss = _import("statsmodels.tsa.statespace.kalman_smoother")
+    F, H, Q, R, x0, P0 = cv_model()
+    ks = kss.KalmanSmoother(k_endog=2, k_states=4, k_posdef=4, **kw)
+    ks.bind(y.copy())
+    ks["design"] = H
+    ks["obs_cov"] = R
+    ks["transition"] = F
+    ks["selection"] = np.eye(4)
+    ks["state_cov"] = Q
+    ks.initialize_known(x0, P0)
+    return kss, ks
+
+
+def mk_sm_smooth_default(y):
+    # smooth() with defaults: the filter stores everything, the smoother
+    # computes SMOOTHER_ALL (states, state covs, disturbances, disturbance
+    # covs, state autocovariances) and a SmootherResults is built.
+    _, ks = _sm_ks(y)
+
+    def run():
+        r = ks.smooth()
+        return r.smoothed_state.T, r.smoothed_state_cov.transpose(2, 0, 1)
+
+    return run
+
+
+# "tuned" smoother (measured with benches/sm_options.py, see BENCHMARKS.md):
+#  * smoother_output = states and state covariances only, and the Cython
+#    filter/smoother called through ks._filter() / ks._smooth() (no
+#    SmootherResults) -- about 2x against plain smooth();
+#  * stability_method=0 -- a few %;
+#  * filter_method=FILTER_UNIVARIATE kept for consistency with W1: for the
+#    whole filter + smoother it ties with the conventional filter (the faster
+#    univariate filter is paid back in the univariate smoother);
+#  * smoothing method: the default (conventional) beats SMOOTH_ALTERNATIVE and
+#    SMOOTH_CLASSICAL (the textbook RTS form);
+#  * conserve_memory can only drop the likelihood and standardised forecast
+#    errors (the smoother needs the rest); set, makes no measurable difference.
+#  * The steady-state shortcut is on as by default; "no steady" = tolerance=0.
+def mk_sm_smooth_tuned(y, steady_state=True):
+    kfm = _import("statsmodels.tsa.statespace.kalman_filter")
+    kw = dict(filter_method=kfm.FILTER_UNIVARIATE, stability_method=0,
+              conserve_memory=kfm.MEMORY_NO_LIKELIHOOD | kfm.MEMORY_NO_STD_FORECAST)
+    if not steady_state:
+        kw["tolerance"] = 0.0
+    kss, ks = _sm_ks(y, **kw)
+    out = kss.SMOOTHER_STATE | kss.SMOOTHER_STATE_COV
+
+    def run():
+        ks._filter()
+        k = ks._smooth(out)
+        return np.asarray(k.smoothed_state).T, np.asarray(k.smoothed_state_cov).transpose(2, 0, 1)
+
+    return run
+
+
+def sm_lag1_reference(y):
+    """statsmodels' smoothed_state_autocov with the full recursion (tolerance=0):
+    autocov[t] = Cov(x[t+1], x[t] | all y), i.e. kfast's P_lag1[t+1]."""
+    _, ks = _sm_ks(y, tolerance=0.0)
+    r = ks.smooth()
+    return np.asarray(r.smoothed_state_autocov).transpose(2, 0, 1)
+
+
 def mk_sm_loglik_default(y):
     _, kf = _sm_kf(y)
     return lambda: kf.loglike()
@@ -345,6 +421,18 @@ def mk_fp_filter(y):
     return run
 
 
+def mk_fp_smooth(y):
+    kf, x0, P0 = _fp_kf()
+
+    def run():
+        _fp_reset(kf, x0, P0)
+        means, covs, _, _ = kf.batch_filter(y, update_first=True)
+        xs, Ps, _, _ = kf.rts_smoother(means, covs)
+        return xs, Ps
+
+    return run
+
+
 def mk_fp_loglik(y):
     kf, x0, P0 = _fp_kf()
     rows = list(y)
@@ -390,6 +478,11 @@ def mk_pk_filter(y):
     return lambda: kf.filter(y)
 
 
+def mk_pk_smooth(y):
+    kf = _pk_kf()
+    return lambda: kf.smooth(y)
+
+
 def mk_pk_loglik(y):
     kf = _pk_kf()
     return lambda: kf.loglikelihood(y)
@@ -411,6 +504,18 @@ def mk_sk_filter(y):
         r = kf.compute(data, 0, initial_value=x0, initial_covariance=P0,
                        smoothed=False, filtered=True, observations=False)
         return r.filtered.states.mean, r.filtered.states.cov
+
+    return run
+
+
+def mk_sk_smooth(y):
+    kf, x0, P0 = _sk_kf()
+    data = y[None]
+
+    def run():
+        r = kf.compute(data, 0, initial_value=x0, initial_covariance=P0,
+                       smoothed=True, filtered=False, observations=False)
+        return r.smoothed.states.mean[0], r.smoothed.states.cov[0]
 
     return run
 
@@ -469,6 +574,23 @@ def mk_dx_loglik(y):
     return lambda: jax.block_until_ready(f_ll(params, e))
 
 
+_DX_SMOOTH = None
+
+
+def mk_dx_smooth(y):
+    global _DX_SMOOTH
+    jax, jnp, params, _, _ = _dynamax()
+    if _DX_SMOOTH is None:
+        inf = _import("dynamax.linear_gaussian_ssm.inference")
+        # only means and covariances leave the jitted function (lgssm_smoother
+        # also builds smoothed_cross_covariances; XLA may drop that work)
+        _DX_SMOOTH = jax.jit(lambda p, e: (lambda r: (r.smoothed_means, r.smoothed_covariances))(
+            inf.lgssm_smoother(p, e)))
+    f = _DX_SMOOTH
+    e = jax.device_put(jnp.asarray(y))
+    return lambda: jax.block_until_ready(f(params, e))
+
+
 # ---- C loop -------------------------------------------------------------------
 _CLOOP = None
 
@@ -493,6 +615,15 @@ def mk_c_filter(y, reuse=False):
         out = (np.empty((len(y), 4)), np.empty((len(y), 4, 4)))
         return lambda: c.filter_prepared(args, out)
     return lambda: c.filter_prepared(args)
+
+
+def mk_c_smooth(y, reuse=False):
+    c = c_loop()
+    args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
+    if reuse:
+        out = c.smooth_out(len(y))
+        return lambda: c.smooth_prepared(args, out)
+    return lambda: c.smooth_prepared(args)
 
 
 def mk_c_loglik(y):
@@ -520,6 +651,59 @@ def _extract_filter(name, out):
     if name.startswith("statsmodels") and "default" in name:
         return np.asarray(out[0]).T, np.asarray(out[1]).transpose(2, 0, 1)
     return np.asarray(out[0]), np.asarray(out[1])
+
+
+def _extract_smooth(name, out):
+    """Normalise a W2 output to (x_smooth (T,n), P_smooth (T,n,n))."""
+    if hasattr(out, "x_smooth"):
+        return np.asarray(out.x_smooth), np.asarray(out.P_smooth)
+    xs, Ps = out[0], out[1]
+    return np.asarray(xs), np.asarray(Ps)
+
+
+def check_smooth(contenders, y, log):
+    """Max |diff| of every W2 contender's x_smooth / P_smooth against the C
+    loop, plus kfast's lag-one covariances against statsmodels'
+    smoothed_state_autocov (full recursion)."""
+    try:
+        c = c_loop()
+    except Unavailable as e:
+        log(f"  (no cross-check: {e})")
+        return {}
+    F, H, Q, R, x0, P0 = cv_model()
+    res = {}
+    refs = {}
+    lag1_ref = None
+    for k in contenders:
+        if not k.ok or k.name.startswith("C loop"):
+            continue
+        T = k.steps
+        if T not in refs:
+            refs[T] = c.smooth(F, H, Q, R, y[:T], x0, P0)
+        xr, Pr, _ = refs[T]
+        try:
+            out = k.fn()
+            xs, Ps = _extract_smooth(k.name, out)
+            dx = float(np.max(np.abs(xs - xr)))
+            dP = float(np.max(np.abs(Ps - Pr)))
+            res[k.name] = (dx, dP)
+            log(f"  {k.name:<36s} max|dx_smooth| = {dx:.2e}   max|dP_smooth| = {dP:.2e}   (T={T})")
+            if hasattr(out, "P_lag1"):
+                if lag1_ref is None:
+                    try:
+                        lag1_ref = sm_lag1_reference(y[:T])
+                    except Exception as e:  # noqa: BLE001
+                        lag1_ref = e
+                if isinstance(lag1_ref, Exception):
+                    log(f"  {'':<36s} (no lag-one check: {_short_err(lag1_ref)})")
+                elif len(lag1_ref) == T:
+                    L = np.asarray(out.P_lag1)
+                    d1 = float(np.max(np.abs(L[1:] - lag1_ref[:-1])))
+                    res[k.name] = (dx, dP, d1)
+                    log(f"  {'':<36s} max|dP_lag1| = {d1:.2e} vs statsmodels smoothed_state_autocov (tolerance=0)")
+        except Exception as e:  # noqa: BLE001
+            log(f"  {k.name:<36s} check failed: {_short_err(e)}")
+    return res
 
 
 def _loglik_of(name, out):
@@ -615,7 +799,7 @@ def table(contenders, kfast_names, title, md=False):
     if md:
         out = [f"#### {title}", "", "| " + " | ".join(head) + " |",
                "|" + "|".join(["---"] + ["---:"] * (len(head) - 2) + ["---"]) + "|"]
-        out += ["| " + " | ".join(r) + " |" for r in rows]
+        out += ["| " + " | ".join(x.replace("|", "\\|") for x in r) + " |" for r in rows]
         return "\n".join(out) + "\n"
     w = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     w[-1] = 0
@@ -686,7 +870,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="short smoke run")
     ap.add_argument("--write", action="store_true", help="rewrite the results block of BENCHMARKS.md")
     ap.add_argument("--rounds", type=int, default=None, help="interleaved rounds per workload")
-    ap.add_argument("--only", default="W1,W3,W7", help="comma list of workloads")
+    ap.add_argument("--only", default="W1,W2,W3,W7", help="comma list of workloads")
     ap.add_argument("--json", metavar="PATH", help="also dump the medians as JSON to PATH")
     args = ap.parse_args(argv)
 
@@ -721,7 +905,7 @@ def main(argv=None):
     except Unavailable as e:
         log(f"C loop: {e}")
 
-    if any(k in todo for k in ("W1", "W3")):
+    if any(k in todo for k in ("W1", "W2", "W3")):
         # pre-compile the JAX functions so that failures show up here
         try:
             _dynamax()
@@ -769,6 +953,37 @@ def main(argv=None):
         log("cross-check vs C loop (same T):")
         chk = check_filter(cs, y, log)
         results["W1"] = (cs, ["kfast standard", "kfast joseph"], chk)
+
+    # ---------------- W2: RTS smoother ----------------
+    if "W2" in todo:
+        log("\n== W2: filter + RTS smoother -> x_smooth (T,n) and P_smooth (T,n,n) ==")
+        lag = "; also returns P_lag1 and the full FilterResult"
+        spec = [
+            ("kfast smooth standard", lambda yy: mk_kfast_smooth(yy, "standard"), T,
+             "LinearGaussian.smooth(form=\"standard\")" + lag, "kfast"),
+            ("kfast smooth joseph", lambda yy: mk_kfast_smooth(yy, "joseph"), T,
+             "LinearGaussian.smooth() (default form, joseph)" + lag, "kfast"),
+            ("C loop", mk_c_smooth, T, "fresh outputs + prior buffers each call", "c"),
+            ("C loop, reused out", lambda yy: mk_c_smooth(yy, reuse=True), T,
+             "output and prior buffers preallocated", "c"),
+            ("statsmodels tuned", mk_sm_smooth_tuned, T,
+             "univariate, no symmetrisation, _filter() + _smooth(STATE|STATE_COV); " + sm_ss_note, "peer"),
+            ("statsmodels tuned, no steady", lambda yy: mk_sm_smooth_tuned(yy, False), T,
+             ns_note, "peer"),
+            ("statsmodels default", mk_sm_smooth_default, T,
+             "KalmanSmoother.smooth() (SMOOTHER_ALL: also disturbances and autocovs); " + sm_ss_note, "peer"),
+            ("dynamax", mk_dx_smooth, T, "jax.jit(lgssm_smoother) -> means, covs; CPU, x64", "peer"),
+            ("simdkalman", mk_sk_smooth, T_slow, slow + "; compute(smoothed=True)", "peer"),
+            ("filterpy", mk_fp_smooth, T_slow, slow + "; batch_filter(update_first=True) + rts_smoother", "peer"),
+            ("pykalman", mk_pk_smooth, T_slow, slow + "; smooth()", "peer"),
+        ]
+        cs = build(spec, y, log)
+        run_interleaved(cs, rounds, log=log)
+        log("")
+        log(table(cs, ["kfast smooth standard", "kfast smooth joseph"], "W2 results"))
+        log("cross-check vs C loop (same T):")
+        chk = check_smooth(cs, y, log)
+        results["W2"] = (cs, ["kfast smooth standard", "kfast smooth joseph"], chk)
 
     # ---------------- W3: loglik ----------------
     if "W3" in todo:
@@ -853,9 +1068,10 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
                  "`X/this` < 1 means X is faster.")
     lines.append("")
     titles = {"W1": "W1: filter (x_filt, P_filt for every step)",
+              "W2": "W2: filter + RTS smoother (x_smooth, P_smooth for every step)",
               "W3": "W3: total log-likelihood",
               "W7": "W7: streaming predict + update from Python"}
-    for w in ("W1", "W3", "W7"):
+    for w in ("W1", "W2", "W3", "W7"):
         if w not in results:
             continue
         cs, knames, chk = results[w]
@@ -864,7 +1080,11 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
             lines.append("Cross-check against the C loop (same data, same T):")
             lines.append("")
             for name, v in chk.items():
-                if isinstance(v, tuple):
+                if isinstance(v, tuple) and w == "W2":
+                    extra = (f"; lag-one covariances vs statsmodels' smoothed_state_autocov "
+                             f"(tolerance=0): max|dP_lag1| = {v[2]:.1e}" if len(v) > 2 else "")
+                    lines.append(f"- {name}: max|dx_smooth| = {v[0]:.1e}, max|dP_smooth| = {v[1]:.1e}{extra}")
+                elif isinstance(v, tuple):
                     lines.append(f"- {name}: max|dx_filt| = {v[0]:.1e}, max|dP_filt| = {v[1]:.1e}")
                 else:
                     lines.append(f"- {name}: |loglik - C| = {v:.1e}")

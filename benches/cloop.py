@@ -4,6 +4,7 @@
     c = CLoop.build()            # gcc -O3 -march=native -shared -fPIC into a temp dir
     x_filt, P_filt, ll = c.filter(F, H, Q, R, y, x0, P0)
     ll = c.loglik(F, H, Q, R, y, x0, P0)
+    x_s, P_s, ll = c.smooth(F, H, Q, R, y, x0, P0)     # RTS smoother (W2)
 
 `CLoop.build()` raises RuntimeError (with the compiler's message) if gcc is
 missing or the build fails; the benchmark catches that and reports the C
@@ -47,6 +48,8 @@ class CLoop:
         lib.kf_cv_filter.restype = ctypes.c_double
         lib.kf_cv_loglik.argtypes = args
         lib.kf_cv_loglik.restype = ctypes.c_double
+        lib.kf_cv_smooth.argtypes = args + [_dp, _dp, _dp, _dp]
+        lib.kf_cv_smooth.restype = ctypes.c_double
 
     @classmethod
     def build(cls, n: int = 4, m: int = 2, cc: str | None = None) -> "CLoop":
@@ -91,6 +94,29 @@ class CLoop:
         F, H, Q, R, y, x0, P0 = args
         return self.lib.kf_cv_loglik(_ptr(F), _ptr(H), _ptr(Q), _ptr(R), _ptr(y),
                                      y.shape[0], _ptr(x0), _ptr(P0))
+
+    def smooth_out(self, T):
+        """(x_s, P_s, x_pred, P_pred): outputs plus the forward-pass work buffers."""
+        n = self.n
+        return (np.empty((T, n)), np.empty((T, n, n)), np.empty((T, n)), np.empty((T, n, n)))
+
+    def smooth_prepared(self, args, out=None):
+        """RTS smoother.  Returns (x_smooth (T,n), P_smooth (T,n,n), loglik).
+
+        `out` = smooth_out(T) to reuse buffers; by default all four are
+        allocated fresh on every call (the priors buffers are part of the
+        cost: the backward pass needs x(t+1|t), P(t+1|t))."""
+        F, H, Q, R, y, x0, P0 = args
+        T = y.shape[0]
+        if out is None:
+            out = self.smooth_out(T)
+        xs, Ps, xp, Pp = out
+        ll = self.lib.kf_cv_smooth(_ptr(F), _ptr(H), _ptr(Q), _ptr(R), _ptr(y), T,
+                                   _ptr(x0), _ptr(P0), _ptr(xs), _ptr(Ps), _ptr(xp), _ptr(Pp))
+        return xs, Ps, ll
+
+    def smooth(self, F, H, Q, R, y, x0, P0):
+        return self.smooth_prepared(self.prepare(F, H, Q, R, y, x0, P0))
 
     def filter(self, F, H, Q, R, y, x0, P0):
         return self.filter_prepared(self.prepare(F, H, Q, R, y, x0, P0))

@@ -23,6 +23,18 @@
  *
  * kf_cv_filter writes x_f (T x N) and P_f (T x N x N) every step and
  * returns the total log-likelihood; kf_cv_loglik only accumulates it.
+ *
+ * kf_cv_smooth adds the Rauch-Tung-Striebel backward pass (W2).  The forward
+ * pass is the loop above; it writes x_f, P_f straight into the smoother's
+ * output arrays and stores the priors x(t|t-1), P(t|t-1) in caller-supplied
+ * buffers (the forward outputs the backward pass needs).  Then, for
+ * t = T-2 .. 0, in place:
+ *   A   = P_f(t) F'                               (N x N)
+ *   J   = A P_pred(t+1)^-1   via Cholesky P_pred(t+1) = L L' and, for each
+ *         row r, the two triangular solves L L' J[r]' = A[r]'
+ *   x_s(t) = x_f(t) + J (x_s(t+1) - x_pred(t+1))
+ *   P_s(t) = P_f(t) + J (P_s(t+1) - P_pred(t+1)) J'
+ * Dense N-sized loops throughout, no symmetry tricks, no lag-one covariances.
  * All arrays are row-major float64.
  *
  * Build: gcc -O3 -march=native -shared -fPIC kf_cv.c -o libkf_cv.so -lm
@@ -214,4 +226,116 @@ double kf_cv_loglik(const double *F, const double *H, const double *Q,
     double ll = 0.0;
     for (long t = 0; t < T; t++) ll += step(&md, y + (size_t)t * M, x, P, xf, Pf);
     return ll;
+}
+
+
+/* RTS smoother (W2).  Outputs x_s (T*N) and P_s (T*N*N); x_pred (T*N) and
+ * P_pred (T*N*N) are work buffers that receive the priors x(t|t-1),
+ * P(t|t-1).  Returns the total log-likelihood of the forward pass, or NaN if
+ * some P(t+1|t) is not positive definite. */
+double kf_cv_smooth(const double *F, const double *H, const double *Q,
+                    const double *R, const double *y, long T,
+                    const double *x0, const double *P0, double *x_s,
+                    double *P_s, double *x_pred, double *P_pred) {
+    model_t md;
+    load_model(&md, F, H, Q, R);
+    double x[N], P[N][N];
+    for (int i = 0; i < N; i++) {
+        x[i] = x0[i];
+        for (int j = 0; j < N; j++) P[i][j] = P0[i * N + j];
+    }
+
+    /* forward pass: priors into x_pred/P_pred, filtered into x_s/P_s */
+    double ll = 0.0;
+    for (long t = 0; t < T; t++) {
+        double *xp = x_pred + (size_t)t * N;
+        double *Pp = P_pred + (size_t)t * N * N;
+        for (int i = 0; i < N; i++) {
+            xp[i] = x[i];
+            for (int j = 0; j < N; j++) Pp[i * N + j] = P[i][j];
+        }
+        double *xf = x_s + (size_t)t * N;
+        double(*Pf)[N] = (double(*)[N])(P_s + (size_t)t * N * N);
+        ll += step(&md, y + (size_t)t * M, x, P, xf, Pf);
+    }
+
+    /* backward pass, in place over x_s/P_s */
+    int bad = 0;
+    for (long t = T - 2; t >= 0; t--) {
+        double *xs = x_s + (size_t)t * N;
+        double(*Ps)[N] = (double(*)[N])(P_s + (size_t)t * N * N);
+        const double *xs1 = x_s + (size_t)(t + 1) * N;
+        const double(*Ps1)[N] = (const double(*)[N])(P_s + (size_t)(t + 1) * N * N);
+        const double *xp1 = x_pred + (size_t)(t + 1) * N;
+        const double(*Pp1)[N] = (const double(*)[N])(P_pred + (size_t)(t + 1) * N * N);
+
+        /* A = P_f(t) F' */
+        double A[N][N];
+        for (int i = 0; i < N; i++)
+            for (int j = 0; j < N; j++) {
+                double s = 0.0;
+                for (int k = 0; k < N; k++) s += Ps[i][k] * md.F[j][k];
+                A[i][j] = s;
+            }
+
+        /* Cholesky P_pred(t+1) = L L' (lower triangle read) */
+        double L[N][N], Linv[N];
+        for (int j = 0; j < N; j++) {
+            double d = Pp1[j][j];
+            for (int k = 0; k < j; k++) d -= L[j][k] * L[j][k];
+            if (!(d > 0.0)) { bad = 1; d = NAN; }
+            double ljj = sqrt(d);
+            L[j][j] = ljj;
+            double inv = 1.0 / ljj;
+            Linv[j] = inv;
+            for (int i = j + 1; i < N; i++) {
+                double s = Pp1[i][j];
+                for (int k = 0; k < j; k++) s -= L[i][k] * L[j][k];
+                L[i][j] = s * inv;
+            }
+        }
+
+        /* J = A P_pred^-1: row r of J solves P_pred J[r]' = A[r]' */
+        double J[N][N];
+        for (int r = 0; r < N; r++) {
+            double z[N];
+            for (int i = 0; i < N; i++) {
+                double s = A[r][i];
+                for (int k = 0; k < i; k++) s -= L[i][k] * z[k];
+                z[i] = s * Linv[i];
+            }
+            for (int i = N - 1; i >= 0; i--) {
+                double s = z[i];
+                for (int k = i + 1; k < N; k++) s -= L[k][i] * J[r][k];
+                J[r][i] = s * Linv[i];
+            }
+        }
+
+        /* x_s(t) = x_f(t) + J (x_s(t+1) - x_pred(t+1)) */
+        double dx[N];
+        for (int i = 0; i < N; i++) dx[i] = xs1[i] - xp1[i];
+        for (int i = 0; i < N; i++) {
+            double s = xs[i];
+            for (int k = 0; k < N; k++) s += J[i][k] * dx[k];
+            xs[i] = s;
+        }
+
+        /* P_s(t) = P_f(t) + J (P_s(t+1) - P_pred(t+1)) J' */
+        double D[N][N], JD[N][N];
+        for (int i = 0; i < N; i++)
+            for (int j = 0; j < N; j++) D[i][j] = Ps1[i][j] - Pp1[i][j];
+        for (int i = 0; i < N; i++)
+            for (int j = 0; j < N; j++) {
+                double s = 0.0;
+                for (int k = 0; k < N; k++) s += J[i][k] * D[k][j];
+                JD[i][j] = s;
+            }
+        for (int i = 0; i < N; i++)
+            for (int j = 0; j < N; j++) {
+                double s = Ps[i][j];
+                for (int k = 0; k < N; k++) s += JD[i][k] * J[j][k];
+                Ps[i][j] = s;
+            }
+    }
+    return bad ? NAN : ll;
 }

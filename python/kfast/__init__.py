@@ -13,7 +13,13 @@ Model and conventions (DESIGN.md §2)::
 1.0
 """
 
-from kfast._kfast import FixedLagSmoother, InnovationCovarianceError, KalmanFilter, KfastError
+from kfast._kfast import (
+    FixedLagSmoother,
+    InnovationCovarianceError,
+    KalmanFilter,
+    KfastError,
+    NoStabilizingSolutionError,
+)
 from kfast._model import (
     FilterResult,
     FixedLagResult,
@@ -25,6 +31,12 @@ from kfast._model import (
 )
 
 from kfast.estimation import EMResult, FitResult, fit
+from kfast.solvers import (
+    solve_continuous_are,
+    solve_continuous_lyapunov,
+    solve_discrete_are,
+    solve_discrete_lyapunov,
+)
 
 __version__ = "0.1.0"
 
@@ -43,4 +55,9 @@ __all__ = [
     "EMResult",
     "KfastError",
     "InnovationCovarianceError",
+    "NoStabilizingSolutionError",
+    "solve_discrete_are",
+    "solve_continuous_are",
+    "solve_discrete_lyapunov",
+    "solve_continuous_lyapunov",
 ]

@@ -11,6 +11,30 @@ class KfastError(ValueError):
 class InnovationCovarianceError(KfastError):
     """The innovation covariance S = H P H' + R at some step cannot be factorized."""
 
+class NoStabilizingSolutionError(KfastError):
+    """A Riccati equation has no stabilizing solution."""
+
+def solve_discrete_lyapunov(a: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def solve_continuous_lyapunov(a: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def stationary_covariance(F: NDArray[np.float64], Q: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def dare(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    q: NDArray[np.float64],
+    r: NDArray[np.float64],
+    e: Optional[NDArray[np.float64]] = None,
+    s: Optional[NDArray[np.float64]] = None,
+    method: str = "doubling",
+) -> dict[str, Any]: ...
+def care(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    q: NDArray[np.float64],
+    r: NDArray[np.float64],
+    e: Optional[NDArray[np.float64]] = None,
+    s: Optional[NDArray[np.float64]] = None,
+) -> dict[str, Any]: ...
+
 class LinearGaussian:
     """The compiled model; use kfast.LinearGaussian, which converts and keeps the arrays."""
 

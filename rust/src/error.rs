@@ -27,6 +27,12 @@ pub enum Error {
         /// Details.
         problem: String,
     },
+    /// A Riccati equation has no stabilizing solution (or none could be found): the method
+    /// never returns a non-stabilizing fixed point instead.
+    NoStabilizingSolution {
+        /// Details.
+        problem: String,
+    },
 }
 
 impl Error {
@@ -76,6 +82,9 @@ impl fmt::Display for Error {
                 problem,
             } => {
                 write!(f, "{arg} at step {t}: {problem}")
+            }
+            Error::NoStabilizingSolution { problem } => {
+                write!(f, "no stabilizing solution of the Riccati equation: {problem}")
             }
             Error::InnovationCovariance { step, problem } => write!(
                 f,

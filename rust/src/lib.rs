@@ -35,16 +35,21 @@ mod dense;
 pub mod error;
 pub mod filter;
 pub mod forecast;
+pub mod lyapunov;
 pub mod model;
 #[cfg(feature = "python")]
 mod python;
+pub mod riccati;
+mod schur;
 pub mod simulate;
 pub mod smoother;
 
 pub use error::{Error, Result};
 pub use filter::{filter, filter_into, loglik, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm};
 pub use forecast::{forecast, Forecast};
+pub use lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov, stationary_covariance};
 pub use model::{LinearGaussian, Matrices, StepMatrix};
+pub use riccati::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiSolution};
 pub use simulate::propagate;
 pub use smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult, SmootherResult,

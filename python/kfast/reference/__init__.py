@@ -19,3 +19,35 @@ __all__ += ["forecast", "propagate"]
 from kfast.reference.estimation import em_step  # noqa: E402
 
 __all__ += ["em_step"]
+
+from kfast.reference.lyapunov import (  # noqa: E402
+    discrete_lyapunov_doubling,
+    solve_continuous_lyapunov_kron,
+    solve_discrete_lyapunov_kron,
+)
+from kfast.reference.riccati import (  # noqa: E402
+    care_eigen,
+    care_residual,
+    dare_eigen,
+    dare_gain,
+    dare_iteration,
+    dare_residual,
+    is_stabilizing_dare,
+)
+from kfast.reference.sampling import expm_taylor, qd_first_order, van_loan  # noqa: E402
+
+__all__ += [
+    "discrete_lyapunov_doubling",
+    "solve_continuous_lyapunov_kron",
+    "solve_discrete_lyapunov_kron",
+    "care_eigen",
+    "care_residual",
+    "dare_eigen",
+    "dare_gain",
+    "dare_iteration",
+    "dare_residual",
+    "is_stabilizing_dare",
+    "expm_taylor",
+    "qd_first_order",
+    "van_loan",
+]

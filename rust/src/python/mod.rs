@@ -3,6 +3,7 @@
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
 mod model;
+mod solvers;
 mod streaming;
 
 use numpy::ndarray::IxDyn;
@@ -24,6 +25,12 @@ create_exception!(
 );
 create_exception!(
     kfast,
+    NoStabilizingSolutionError,
+    KfastError,
+    "A Riccati equation has no stabilizing solution (a ValueError)."
+);
+create_exception!(
+    kfast,
     InnovationCovarianceError,
     KfastError,
     "The innovation covariance S = H P H' + R at some step cannot be factorized."
@@ -33,6 +40,7 @@ impl From<Error> for PyErr {
     fn from(err: Error) -> PyErr {
         match err {
             Error::InnovationCovariance { .. } => InnovationCovarianceError::new_err(err.to_string()),
+            Error::NoStabilizingSolution { .. } => NoStabilizingSolutionError::new_err(err.to_string()),
             _ => KfastError::new_err(err.to_string()),
         }
     }
@@ -228,8 +236,17 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("KfastError", py.get_type::<KfastError>())?;
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
+    m.add(
+        "NoStabilizingSolutionError",
+        py.get_type::<NoStabilizingSolutionError>(),
+    )?;
     m.add_class::<model::PyLinearGaussian>()?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;
+    m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::solve_continuous_lyapunov, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     Ok(())
 }
