@@ -31,6 +31,8 @@ from kfast._model import (
 )
 
 from kfast.estimation import EMResult, FitResult, fit
+from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy
+from kfast.stationary import InnovationsForm, SteadyState
 from kfast.solvers import (
     solve_continuous_are,
     solve_continuous_lyapunov,
@@ -60,4 +62,10 @@ __all__ = [
     "solve_continuous_are",
     "solve_discrete_lyapunov",
     "solve_continuous_lyapunov",
+    "expm",
+    "discretize",
+    "kalman_bucy",
+    "SteadyState",
+    "InnovationsForm",
+    "KalmanBucy",
 ]

@@ -35,6 +35,11 @@ def care(
     s: Optional[NDArray[np.float64]] = None,
 ) -> dict[str, Any]: ...
 
+def expm(a: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def discretize(
+    A: NDArray[np.float64], Qc: NDArray[np.float64], dt: NDArray[np.float64], B: Optional[NDArray[np.float64]] = None
+) -> dict[str, NDArray[np.float64]]: ...
+
 class LinearGaussian:
     """The compiled model; use kfast.LinearGaussian, which converts and keeps the arrays."""
 
@@ -63,6 +68,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
         form: str = "joseph",
+        converge_tol: Optional[float] = None,
     ) -> dict[str, Any]: ...
     def loglik(
         self,
@@ -71,6 +77,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
         form: str = "joseph",
+        converge_tol: Optional[float] = None,
     ) -> float: ...
 
     def smooth(

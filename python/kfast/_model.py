@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterator, NamedTuple, Optional
+from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional
 
 import numpy as np
 
 from kfast import _kfast
 from kfast._arrays import as_float64, frozen_copy
+
+if TYPE_CHECKING:
+    from kfast.stationary import InnovationsForm, SteadyState
 
 __all__ = [
     "LinearGaussian",
@@ -185,6 +188,24 @@ class LinearGaussian:
         self.D: Optional[np.ndarray] = arrays["D"]
         self.N: Optional[np.ndarray] = arrays["N"]
 
+    @classmethod
+    def from_continuous(cls, A, Qc, H, R, dt=None, B=None, D=None, times=None) -> "LinearGaussian":
+        """The exact discrete model of dx = A x dt + B u dt + dbeta (E[dbeta dbeta'] = Qc dt, a
+        continuous intensity), sampled as y[t] = H x[t] + D u[t] + v[t], cov v = R (a
+        discrete covariance: white noise of intensity Rc averaged over h has R = Rc / h).
+
+        ``dt`` a scalar gives a constant model; an array of intervals (T, or T-1) or sample
+        ``times`` (T, irregular) give per-step F[t] = e^{A dt[t]}, Qd[t], Bd[t] (Van Loan,
+        computed in Rust), where dt[t] is the interval from step t to t+1.
+        """
+        from kfast.sampling import discretize, intervals
+
+        if times is None and dt is not None and np.ndim(dt) == 0:
+            F, Qd, Bd = discretize(A, Qc, dt, B=B)
+        else:
+            F, Qd, Bd = discretize(A, Qc, intervals(dt=dt, times=times), B=B)
+        return cls(F, H, Qd, R, B=Bd, D=D)
+
     @property
     def n_states(self) -> int:
         """State dimension n."""
@@ -209,7 +230,9 @@ class LinearGaussian:
         tv = "" if self.steps is None else f", steps={self.steps}"
         return f"LinearGaussian(n_states={self.n_states}, n_obs={self.n_obs}, n_inputs={self.n_inputs}{tv})"
 
-    def filter(self, y, x0, P0, u=None, form: str = "joseph") -> FilterResult:
+    def filter(
+        self, y, x0, P0=None, u=None, form: str = "joseph", steady_state: bool = False, converge_tol=None
+    ) -> FilterResult:
         """Kalman filter over y, shape (T, m) (or (T,) when m = 1); NaN marks a missing value.
 
         (x0, P0) is the prior x(0|-1), P(0|-1): the first operation is the update with y[0].
@@ -219,15 +242,68 @@ class LinearGaussian:
 
         form: "joseph" (default; (I-KH)P(I-KH)' + KRK', stays PSD) or "standard"
         (P - K S K', symmetrized). Söderström Lemma 6.1 / (6.24).
+
+        steady_state=True: the constant-gain filter with the stationary gains of
+        ``steady_state()`` from the first step, O(n^2) per step (P0 is not used; constant
+        models only). A missing value makes that step run the full recursion from the
+        stationary covariance, after which the filter returns to the constant gains.
+        converge_tol: switch to constant gains once max|P(t+1|t) - P(t|t-1)| <= converge_tol
+        * max(1, max|P|) at a fully observed step, like statsmodels' steady-state shortcut;
+        results then differ from the exact filter by about that tolerance. Off by default.
         """
+        if steady_state:
+            if converge_tol is not None:
+                raise _kfast.KfastError("converge_tol: not used with steady_state=True (the gains are constant from the start)")
+            P0 = self.steady_state().P_pred
+            converge_tol = np.inf
+        elif P0 is None:
+            raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
-        out = self._core.filter(*args, form=_form(form))
+        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol))
         return FilterResult(**out, model=self)
 
-    def loglik(self, y, x0, P0, u=None, form: str = "joseph") -> float:
+    def loglik(self, y, x0, P0, u=None, form: str = "joseph", converge_tol=None) -> float:
         """The log-likelihood sum_t log N(y(t); H x(t|t-1) + D u(t), S(t)) alone (Söderström
         (6.142)), computed without storing any per-step covariance. Same arguments as filter."""
-        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form))
+        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=_tolerance(converge_tol))
+
+    def steady_state(self, method: str = "doubling") -> "SteadyState":
+        """The stationary filter: P_pred (the stabilizing DARE solution, with SciPy's
+        solve_discrete_are(F', H', Q, R, s=N)), P_filt, K, K_pred, S, the closed-loop
+        eigenvalues of F - K_pred H and the residual (Söderström (6.91)). Raises
+        ``kfast.NoStabilizingSolutionError`` when (F, H) is not detectable or the noise does not
+        excite the unstable modes. Constant models only."""
+        from kfast.stationary import steady_state
+
+        return steady_state(self, method=method)
+
+    def innovations_form(self) -> "InnovationsForm":
+        """(F, K_pred, H, S) of the steady-state innovations model (Söderström Thm 4.2)."""
+        from kfast.stationary import innovations_form
+
+        return innovations_form(self)
+
+    def stationary_cov(self) -> np.ndarray:
+        """The stationary state covariance Pi = F Pi F' + Q (Söderström (4.22)); raises
+        ``kfast.KfastError`` unless F is stable (a random walk has none)."""
+        from kfast.stationary import stationary_cov
+
+        return stationary_cov(self)
+
+    def autocovariance(self, lags) -> np.ndarray:
+        """r_y(tau) = E[y(t+tau) y(t)'] of the stationary output for each lag, shape
+        (len(lags), m, m); r_y(-tau) = r_y(tau)'. Inputs are ignored (zero mean)."""
+        from kfast.stationary import autocovariance
+
+        return autocovariance(self, lags)
+
+    def spectral_density(self, omega, h: float = 1.0) -> np.ndarray:
+        """Output spectral density phi_y(e^{i omega h}), shape (len(omega), m, m), complex
+        Hermitian, with Söderström's normalization (no 1/2pi): r_y(k) = (1/2pi) times the
+        integral of phi_y e^{i omega k h} over |omega| <= pi/h. h is the sampling interval."""
+        from kfast.stationary import spectral_density
+
+        return spectral_density(self, omega, h=h)
 
     def smooth(self, y, x0, P0, u=None, form: str = "joseph") -> SmootherResult:
         """Rauch-Tung-Striebel fixed-interval smoother: x(t|T-1), P(t|T-1) and the lag-one
@@ -351,6 +427,15 @@ def _psd_sqrt(C: np.ndarray) -> np.ndarray:
 def _column_if_1d(a: np.ndarray, width: int) -> np.ndarray:
     """A 1-D series of a scalar quantity as a (T, 1) column."""
     return a[:, None] if a.ndim == 1 and width == 1 else a
+
+
+def _tolerance(value) -> Optional[float]:
+    if value is None:
+        return None
+    tol = float(value)
+    if not tol >= 0:
+        raise _kfast.KfastError(f"converge_tol: must be >= 0, got {value!r}")
+    return tol
 
 
 def _index(name: str, value) -> int:

@@ -20,6 +20,11 @@
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
+//! - [`solve_discrete_are`] / [`solve_continuous_are`] → [`RiccatiSolution`] (SciPy's
+//!   conventions, [`DareMethod`]), [`solve_discrete_lyapunov`], [`solve_continuous_lyapunov`],
+//!   [`stationary_covariance`].
+//! - [`expm`], [`discretize`] / [`discretize_steps`] → [`Discretized`]: Van Loan sampling of
+//!   continuous-time models.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -40,16 +45,20 @@ pub mod model;
 #[cfg(feature = "python")]
 mod python;
 pub mod riccati;
+pub mod sampling;
 mod schur;
 pub mod simulate;
 pub mod smoother;
 
 pub use error::{Error, Result};
-pub use filter::{filter, filter_into, loglik, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm};
+pub use filter::{
+    filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm,
+};
 pub use forecast::{forecast, Forecast};
 pub use lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov, stationary_covariance};
 pub use model::{LinearGaussian, Matrices, StepMatrix};
 pub use riccati::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiSolution};
+pub use sampling::{discretize, discretize_steps, expm, Discretized};
 pub use simulate::propagate;
 pub use smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult, SmootherResult,

@@ -48,6 +48,29 @@ impl<'a> Series<'a> {
     }
 }
 
+/// How the filter runs: the covariance update form and whether to freeze the gains once the
+/// covariance has converged.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilterOptions {
+    /// Joseph (default) or standard covariance update.
+    pub form: UpdateForm,
+    /// Freeze P, S and the gains once ‖P(t+1|t) − P(t|t−1)‖_max ≤ tol · max(1, ‖P‖_max) at a
+    /// fully observed step (like statsmodels' steady-state switch); a missing value resumes
+    /// the full recursion. Then a step costs O(n² + nm + m²). Off (`None`) by default;
+    /// constant models only. `Some(f64::INFINITY)` freezes after the first step, which with
+    /// P0 = the stationary P(t|t−1) is the steady-state (constant-gain) filter.
+    pub converge_tol: Option<f64>,
+}
+
+impl From<UpdateForm> for FilterOptions {
+    fn from(form: UpdateForm) -> Self {
+        FilterOptions {
+            form,
+            converge_tol: None,
+        }
+    }
+}
+
 /// Everything the filter computes, row-major, for `T` steps, `n` states and `m` outputs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FilterResult {
@@ -138,10 +161,10 @@ pub fn filter(
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    form: UpdateForm,
+    options: impl Into<FilterOptions>,
 ) -> Result<FilterResult> {
     let mut res = FilterResult::zeros(y.steps(), model.n_states(), model.n_obs());
-    res.loglik = filter_into(model, y, u, x0, p0, form, res.outputs())?;
+    res.loglik = filter_into(model, y, u, x0, p0, options, res.outputs())?;
     Ok(res)
 }
 
@@ -153,13 +176,16 @@ pub fn filter_into(
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    form: UpdateForm,
+    options: impl Into<FilterOptions>,
     out: FilterOutputs<'_>,
 ) -> Result<f64> {
     let (n, m) = (model.n_states(), model.n_obs());
+    let options = options.into();
+    let form = options.form;
     let steps = check_data(model, y, u, x0, p0)?;
     check_outputs(&out, steps, n, m)?;
     let mut ws = start(model, x0, p0);
+    ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
     let mut total = 0.0;
     for t in 0..steps {
         out.x_pred[t * n..(t + 1) * n].copy_from_slice(&ws.x_pred);
@@ -187,10 +213,13 @@ pub fn loglik(
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    form: UpdateForm,
+    options: impl Into<FilterOptions>,
 ) -> Result<f64> {
+    let options = options.into();
+    let form = options.form;
     let steps = check_data(model, y, u, x0, p0)?;
     let mut ws = start(model, x0, p0);
+    ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
     let mut total = 0.0;
     for t in 0..steps {
         advance(model, &mut ws, y, u, form, t)?;
@@ -222,6 +251,17 @@ fn advance(
     ws.update(&sys, y.row(t), u_t, form, t)?;
     ws.predict(&sys, u_t);
     Ok(())
+}
+
+fn check_converge_tol(model: &LinearGaussian, tol: Option<f64>) -> Result<Option<f64>> {
+    match tol {
+        Some(t) if t.is_nan() || t < 0.0 => Err(Error::arg("converge_tol", format!("must be ≥ 0, got {t}"))),
+        Some(_) if model.steps().is_some() => Err(Error::arg(
+            "converge_tol",
+            "needs constant model matrices (this model has per-step ones)",
+        )),
+        other => Ok(other),
+    }
 }
 
 fn check_outputs(out: &FilterOutputs<'_>, steps: usize, n: usize, m: usize) -> Result<()> {

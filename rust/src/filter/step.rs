@@ -52,6 +52,13 @@ pub(crate) struct Workspace {
     pub gain: Vec<f64>,
     pub gain_pred: Vec<f64>,
     pub loglik_t: f64,
+    /// Freeze the covariance recursion once ‖P(t+1|t) − P(t|t−1)‖ ≤ tol · max(1, ‖P‖)
+    /// (max norms) at a fully observed step; a missing value unfreezes it.
+    pub converge_tol: Option<f64>,
+    /// Whether the covariances and gains are frozen (then a step costs O(n² + nm + m²)).
+    pub frozen: bool,
+    /// log det S of the last full update (used while frozen).
+    log_det: f64,
     /// Components observed at this step, and how many (0 = no update).
     pub obs: Vec<usize>,
     pub m_obs: usize,
@@ -72,6 +79,8 @@ pub(crate) struct Workspace {
     nm_a: Vec<f64>,
     nm_b: Vec<f64>,
     mn_a: Vec<f64>,
+    /// P(t|t−1) before the time update, for the convergence test.
+    p_prev: Vec<f64>,
 }
 
 impl Workspace {
@@ -90,6 +99,9 @@ impl Workspace {
             gain: z(n * m),
             gain_pred: z(n * m),
             loglik_t: 0.0,
+            converge_tol: None,
+            frozen: false,
+            log_det: 0.0,
             obs: vec![0; m],
             m_obs: 0,
             pht_full: z(n * m),
@@ -106,6 +118,7 @@ impl Workspace {
             nm_a: z(n * m),
             nm_b: z(n * m),
             mn_a: z(m * n),
+            p_prev: z(n * n),
         }
     }
 
@@ -126,6 +139,13 @@ impl Workspace {
         }
         for (e, yi) in self.innov.iter_mut().zip(y) {
             *e = yi - *e;
+        }
+        if self.frozen {
+            if y.iter().all(|v| !v.is_nan()) {
+                self.update_frozen();
+                return Ok(());
+            }
+            self.frozen = false;
         }
         // S = H P H' + R for all components: the forecast error covariance of y(t).
         mul_bt(&mut self.pht_full, &self.p_pred, sys.h, n, n, m);
@@ -161,6 +181,7 @@ impl Workspace {
         })?;
         let chol = &self.chol[..mo * mo];
         let log_det: f64 = (0..mo).map(|i| 2.0 * chol[i * mo + i].ln()).sum();
+        self.log_det = log_det;
         // w = L⁻¹ e gives e' S⁻¹ e = ‖w‖²; then L'⁻¹ w = S⁻¹ e.
         let s_inv_e = &mut self.s_inv_e[..mo];
         s_inv_e.copy_from_slice(&self.e_o[..mo]);
@@ -218,6 +239,22 @@ impl Workspace {
         Ok(())
     }
 
+    /// The update with frozen gains (all components observed, as at the step that froze):
+    /// only the state moves; S, K, P(t|t) are those of that step.
+    fn update_frozen(&mut self) {
+        let (n, m) = (self.n, self.m);
+        self.e_o[..m].copy_from_slice(&self.innov);
+        let chol = &self.chol[..m * m];
+        let s_inv_e = &mut self.s_inv_e[..m];
+        s_inv_e.copy_from_slice(&self.innov);
+        solve_lower(chol, s_inv_e, m, 1);
+        let quad: f64 = s_inv_e.iter().map(|w| w * w).sum();
+        solve_lower_t(chol, s_inv_e, m, 1);
+        self.loglik_t = -0.5 * (m as f64 * LN_2PI + self.log_det + quad);
+        self.x_filt.copy_from_slice(&self.x_pred);
+        mul_vec_add(&mut self.x_filt, &self.pht[..n * m], s_inv_e, n, m);
+    }
+
     /// Copies the observed components' blocks (all of them when nothing is missing).
     fn gather_observed(&mut self, sys: &StepView<'_>) {
         let (n, m, mo) = (self.n, self.m, self.m_obs);
@@ -242,6 +279,7 @@ impl Workspace {
 
     /// Skips the measurement update (nothing observed, as for an all-NaN y).
     pub fn skip_update(&mut self) {
+        self.frozen = false;
         self.m_obs = 0;
         self.innov.fill(f64::NAN);
         self.gain.fill(0.0);
@@ -257,6 +295,15 @@ impl Workspace {
         mul_vec(&mut self.x_pred, sys.f, &self.x_filt, n, n);
         if let (Some(b), Some(u)) = (sys.b, u) {
             mul_vec_add(&mut self.x_pred, b, u, n, self.k);
+        }
+        if self.frozen {
+            if sys.n.is_some() {
+                mul_vec_add(&mut self.x_pred, &self.n_o[..n * m], &self.s_inv_e[..m], n, m);
+            }
+            return;
+        }
+        if self.converge_tol.is_some() {
+            self.p_prev.copy_from_slice(&self.p_pred);
         }
         mul(&mut self.nn_a, sys.f, &self.p_filt, n, n, n);
         mul_bt(&mut self.p_pred, &self.nn_a, sys.f, n, n, n);
@@ -304,5 +351,15 @@ impl Workspace {
             }
         }
         symmetrize(&mut self.p_pred, n);
+        if let (Some(tol), true) = (self.converge_tol, mo == m) {
+            let change = self
+                .p_pred
+                .iter()
+                .zip(&self.p_prev)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            let size = self.p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            self.frozen = change <= tol * size;
+        }
     }
 }

@@ -248,5 +248,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;
+    m.add_function(wrap_pyfunction!(solvers::discretize, m)?)?;
     Ok(())
 }

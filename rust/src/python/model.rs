@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::{data, filter_outputs, non_negative, parse_form, prior, series, to_array, KfastError, OutArrays};
-use crate::filter::{self, Series};
+use crate::filter::{self, FilterOptions, Series};
 use crate::model::{self, Matrices, StepMatrix};
 use crate::smoother::{self, FilteredView, SmootherOutputs};
 
@@ -80,8 +80,9 @@ impl PyLinearGaussian {
     }
 
     /// Runs the filter; returns a dict of the FilterResult fields.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph", converge_tol=None))]
     #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
         &self,
         py: Python<'py>,
@@ -90,8 +91,12 @@ impl PyLinearGaussian {
         P0: Array<'py>,
         u: Option<Array<'py>>,
         form: &str,
+        converge_tol: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let form = parse_form(form)?;
+        let form = FilterOptions {
+            form: parse_form(form)?,
+            converge_tol,
+        };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let mut out = OutArrays::for_filter(py, y.steps(), self.inner.n_states(), self.inner.n_obs());
@@ -105,8 +110,9 @@ impl PyLinearGaussian {
     }
 
     /// The log-likelihood alone.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph", converge_tol=None))]
     #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
     fn loglik(
         &self,
         py: Python<'_>,
@@ -115,8 +121,12 @@ impl PyLinearGaussian {
         P0: Array<'_>,
         u: Option<Array<'_>>,
         form: &str,
+        converge_tol: Option<f64>,
     ) -> PyResult<f64> {
-        let form = parse_form(form)?;
+        let form = FilterOptions {
+            form: parse_form(form)?,
+            converge_tol,
+        };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let model = &*self.inner;

@@ -187,3 +187,48 @@ pub(super) fn care<'py>(
     let sol = py.detach(|| crate::solve_continuous_are(av, bv, qv, rv, ev, sv, n, m))?;
     solution_dict(py, sol, n, m)
 }
+
+#[pyfunction]
+pub(super) fn expm<'py>(py: Python<'py>, a: Array<'py>) -> PyResult<OutArray<'py>> {
+    let (av, n) = square("a", &a)?;
+    let e = py.detach(|| crate::expm(av, n))?;
+    to_array(py, &e, &[n, n])
+}
+
+/// Van Loan discretization for each dt: dict with F (T, n, n), Qd (T, n, n), Bd (T, n, k).
+#[pyfunction]
+#[pyo3(signature = (A, Qc, dt, B=None))]
+#[allow(non_snake_case)]
+pub(super) fn discretize<'py>(
+    py: Python<'py>,
+    A: Array<'py>,
+    Qc: Array<'py>,
+    dt: Array<'py>,
+    B: Option<Array<'py>>,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    let (av, n) = square("A", &A)?;
+    let (qv, nq) = square("Qc", &Qc)?;
+    same_size("Qc", nq, n, "A")?;
+    let dts = data("dt", &dt, 1)?;
+    let (bv, k) = match &B {
+        Some(b) => {
+            let (bv, bn, k) = matrix("B", b)?;
+            if bn != n {
+                return Err(KfastError::new_err(format!(
+                    "B: expected {n} rows like A, got shape ({bn}, {k})"
+                )));
+            }
+            (Some(bv), k)
+        }
+        None => (None, 0),
+    };
+    let d = py.detach(|| crate::discretize_steps(av, qv, bv, n, k, dts))?;
+    let steps = dts.len();
+    let dict = pyo3::types::PyDict::new(py);
+    dict.set_item("F", to_array(py, &d.f, &[steps, n, n])?)?;
+    dict.set_item("Qd", to_array(py, &d.qd, &[steps, n, n])?)?;
+    if bv.is_some() {
+        dict.set_item("Bd", to_array(py, &d.bd, &[steps, n, k])?)?;
+    }
+    Ok(dict)
+}

@@ -1,0 +1,99 @@
+"""Continuous-time models: matrix exponential, exact (Van Loan) discretization, irregular
+sampling, and the stationary Kalman-Bucy filter (ALGORITHMS.md §8; Söderström (4.99)-(4.103)).
+
+Conventions: dx = A x dt + B u dt + dbeta with E[dbeta dbeta'] = Qc dt, so Qc is a continuous
+white-noise *intensity* (its discrete covariance over an interval h is Qd(h), about Qc h for
+small h, never Qc itself). Inputs are held constant over each interval (zero-order hold).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from kfast import _kfast
+from kfast._arrays import as_float64
+from kfast.solvers import _matrix, care
+
+__all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals"]
+
+
+def expm(a) -> np.ndarray:
+    """e^a by scaling and squaring with the degree-13 Padé approximant (Higham 2005)."""
+    return _kfast.expm(_matrix("a", a))
+
+
+class Discretized(NamedTuple):
+    """The exact discrete model: ``F, Qd, Bd = kfast.discretize(...)``."""
+
+    F: np.ndarray
+    """e^{A dt}: (n, n), or (T, n, n) for an array of dt."""
+    Qd: np.ndarray
+    """The integral of e^{As} Qc e^{A's} over [0, dt]: the discrete process noise covariance."""
+    Bd: Optional[np.ndarray]
+    """The integral of e^{As} ds times B (zero-order hold), or None without B."""
+
+
+def discretize(A, Qc, dt, B=None) -> Discretized:
+    """Exact discretization (Van Loan, inverse-free form) of dx = A x dt + B u dt + dbeta,
+    E[dbeta dbeta'] = Qc dt, over an interval dt > 0. A scalar dt gives (n, n) matrices; an
+    array of T intervals gives per-step stacks (T, n, n), computed in Rust."""
+    dt_arr = as_float64("dt", dt)
+    if dt_arr.ndim > 1:
+        raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {dt_arr.shape}")
+    out = _kfast.discretize(_matrix("A", A), _matrix("Qc", Qc), np.atleast_1d(dt_arr), None if B is None else _matrix("B", B))
+    if dt_arr.ndim == 0:
+        return Discretized(out["F"][0], out["Qd"][0], out["Bd"][0] if "Bd" in out else None)
+    return Discretized(out["F"], out["Qd"], out.get("Bd"))
+
+
+def intervals(dt=None, times=None, steps: Optional[int] = None) -> np.ndarray:
+    """The per-step intervals of an irregularly sampled series: ``dt`` (length T, or T-1 and
+    then the last step, which only moves x(T|T-1) past the data, reuses the previous interval),
+    or ``times`` (T strictly increasing sample times; same rule for the last step)."""
+    if (dt is None) == (times is None):
+        raise _kfast.KfastError("dt, times: give exactly one of them")
+    if times is not None:
+        t = as_float64("times", times)
+        if t.ndim != 1 or len(t) < 2:
+            raise _kfast.KfastError(f"times: expected a 1-D array of at least 2 sample times, got shape {t.shape}")
+        d = np.diff(t)
+        bad = np.flatnonzero(~(d > 0))
+        if len(bad):
+            raise _kfast.KfastError(f"times at step {bad[0] + 1}: not strictly increasing ({t[bad[0]]} then {t[bad[0] + 1]})")
+        d = np.append(d, d[-1])
+    else:
+        d = np.atleast_1d(as_float64("dt", dt))
+        if d.ndim != 1:
+            raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {d.shape}")
+        if steps is not None and len(d) == steps - 1:
+            d = np.append(d, d[-1]) if len(d) else d
+    bad = np.flatnonzero(~(d > 0) | ~np.isfinite(d))
+    if len(bad):
+        raise _kfast.KfastError(f"dt at step {bad[0]}: must be positive and finite, got {d[bad[0]]}")
+    return d
+
+
+@dataclass(frozen=True, repr=False)
+class KalmanBucy:
+    """The stationary continuous-time (Kalman-Bucy) filter of dx = A x dt + dbeta,
+    dy = H x dt + dv with intensities Qc and Rc: A P + P A' - P H' Rc^-1 H P + Qc = 0."""
+
+    P: np.ndarray
+    """Stationary error covariance."""
+    K: np.ndarray
+    """Gain P H' Rc^-1: dx^ = A x^ dt + K (dy - H x^ dt)."""
+    closed_loop_eigenvalues: np.ndarray
+    """Eigenvalues of A - K H (all in the open left half-plane)."""
+
+    def __repr__(self) -> str:
+        return f"KalmanBucy(n={len(self.P)})"
+
+
+def kalman_bucy(A, Qc, H, Rc) -> KalmanBucy:
+    """Stationary Kalman-Bucy gain via the CARE (solve_continuous_are(A', H', Qc, Rc))."""
+    A, H = _matrix("A", A), _matrix("H", H)
+    sol = care(A.T, H.T, Qc, Rc)
+    return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])
