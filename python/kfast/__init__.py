@@ -31,7 +31,7 @@ from kfast._model import (
 )
 
 from kfast.estimation import EMResult, FitResult, fit
-from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy
+from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
 from kfast.stationary import InnovationsForm, SteadyState
 from kfast.solvers import (
     solve_continuous_are,
@@ -68,4 +68,5 @@ __all__ = [
     "SteadyState",
     "InnovationsForm",
     "KalmanBucy",
+    "stationary_cov_continuous",
 ]

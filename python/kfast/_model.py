@@ -194,9 +194,10 @@ class LinearGaussian:
         continuous intensity), sampled as y[t] = H x[t] + D u[t] + v[t], cov v = R (a
         discrete covariance: white noise of intensity Rc averaged over h has R = Rc / h).
 
-        ``dt`` a scalar gives a constant model; an array of intervals (T, or T-1) or sample
-        ``times`` (T, irregular) give per-step F[t] = e^{A dt[t]}, Qd[t], Bd[t] (Van Loan,
-        computed in Rust), where dt[t] is the interval from step t to t+1.
+        ``dt`` a scalar gives a constant model; an array of T intervals (dt[t] from step t to
+        t+1; the last one only moves x(T|T-1) past the data) or T sample ``times``
+        (irregular; the last step reuses the last interval) give per-step F[t] = e^{A dt[t]},
+        Qd[t], Bd[t] (Van Loan, computed in Rust).
         """
         from kfast.sampling import discretize, intervals
 

@@ -17,7 +17,7 @@ from kfast import _kfast
 from kfast._arrays import as_float64
 from kfast.solvers import _matrix, care
 
-__all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals"]
+__all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals", "stationary_cov_continuous"]
 
 
 def expm(a) -> np.ndarray:
@@ -49,10 +49,10 @@ def discretize(A, Qc, dt, B=None) -> Discretized:
     return Discretized(out["F"], out["Qd"], out.get("Bd"))
 
 
-def intervals(dt=None, times=None, steps: Optional[int] = None) -> np.ndarray:
-    """The per-step intervals of an irregularly sampled series: ``dt`` (length T, or T-1 and
-    then the last step, which only moves x(T|T-1) past the data, reuses the previous interval),
-    or ``times`` (T strictly increasing sample times; same rule for the last step)."""
+def intervals(dt=None, times=None) -> np.ndarray:
+    """The per-step intervals of an irregularly sampled series: ``dt`` (one per step: dt[t] is
+    the interval from step t to t+1, the last one only moves x(T|T-1) past the data), or
+    ``times`` (T strictly increasing sample times; the last step reuses the last interval)."""
     if (dt is None) == (times is None):
         raise _kfast.KfastError("dt, times: give exactly one of them")
     if times is not None:
@@ -68,12 +68,26 @@ def intervals(dt=None, times=None, steps: Optional[int] = None) -> np.ndarray:
         d = np.atleast_1d(as_float64("dt", dt))
         if d.ndim != 1:
             raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {d.shape}")
-        if steps is not None and len(d) == steps - 1:
-            d = np.append(d, d[-1]) if len(d) else d
     bad = np.flatnonzero(~(d > 0) | ~np.isfinite(d))
     if len(bad):
         raise _kfast.KfastError(f"dt at step {bad[0]}: must be positive and finite, got {d[bad[0]]}")
     return d
+
+
+def stationary_cov_continuous(A, Qc) -> np.ndarray:
+    """The stationary covariance Pi of dx = A x dt + dbeta (intensity Qc): A Pi + Pi A' + Qc
+    = 0 (Söderström (4.90)-(4.92)). Raises ``kfast.KfastError`` unless A is Hurwitz: the
+    Lyapunov equation may still have a (negative) solution, which is not a covariance
+    (Grewal & Andrews problem 4.27)."""
+    from kfast.solvers import solve_continuous_lyapunov
+
+    A, Qc = _matrix("A", A), _matrix("Qc", Qc)
+    top = float(np.linalg.eigvals(A).real.max())
+    if top >= 0:
+        raise _kfast.KfastError(
+            f"A: is not stable (largest real part of an eigenvalue {top:.6g}): the state has no stationary covariance"
+        )
+    return solve_continuous_lyapunov(A, -Qc)
 
 
 @dataclass(frozen=True, repr=False)

@@ -143,8 +143,15 @@ fn sym(a: &Mat<f64>) -> Mat<f64> {
 fn invert(a: &Mat<f64>) -> Option<Mat<f64>> {
     let n = a.nrows();
     let inv = a.partial_piv_lu().solve(Mat::<f64>::identity(n, n));
-    let check = (a * &inv - Mat::<f64>::identity(n, n)).norm_max();
-    (inv.norm_max().is_finite() && check < 1e-8).then_some(inv)
+    let residual = a * &inv - Mat::<f64>::identity(n, n);
+    // (norm_max skips NaN, so check every entry)
+    let ok = (0..n).all(|i| (0..n).all(|j| inv[(i, j)].is_finite() && residual[(i, j)].abs() < 1e-8));
+    ok.then_some(inv)
+}
+
+/// Every entry finite (faer's norm_max skips NaN, so it cannot tell).
+fn all_finite(m: &Mat<f64>) -> bool {
+    (0..m.nrows()).all(|i| (0..m.ncols()).all(|j| m[(i, j)].is_finite()))
 }
 
 fn solve(a: &Mat<f64>, rhs: &Mat<f64>) -> Mat<f64> {
@@ -219,7 +226,7 @@ fn dare_gain(p: &Problem, x: &Mat<f64>) -> Option<Mat<f64>> {
     let sk = bt * x * &p.b + &p.r;
     let rhs = bt * x * &p.a + p.s.transpose();
     let k = solve(&sk, &rhs);
-    k.norm_max().is_finite().then_some(k)
+    all_finite(&k).then_some(k)
 }
 
 /// (a − bK)' X (a − bK) + q − sK − K's' + K'rK: one Riccati step in congruence form.
@@ -246,7 +253,7 @@ fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
         let h_next = sym(&(&hk + ak.transpose() * &hk * &v1));
         let change = (&h_next - &hk).norm_max();
         let size = h_next.norm_max();
-        if !size.is_finite() {
+        if !all_finite(&h_next) || !all_finite(&a_next) {
             return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
         }
         ak = a_next;
@@ -272,7 +279,7 @@ fn iteration(p: &Problem) -> Result<(Mat<f64>, usize)> {
         let next = riccati_step(p, &x, &k);
         let change = (&next - &x).norm_max();
         let size = next.norm_max();
-        if !size.is_finite() {
+        if !all_finite(&next) {
             return Err(no_solution("the Riccati iteration diverged (is (a, b) stabilizable?)"));
         }
         x = next;
@@ -360,7 +367,7 @@ fn stable_subspace(z: &Mat<f64>, n: usize, stable: impl Fn(c64) -> bool, region:
     let u2t = Mat::<c64>::from_fn(n, n, |i, j| u[(n + j, chosen[i])]);
     let xt = u1t.partial_piv_lu().solve(&u2t);
     let x = Mat::<f64>::from_fn(n, n, |i, j| xt[(j, i)].re);
-    if !x.norm_max().is_finite() {
+    if !all_finite(&x) {
         return Err(no_solution("the stable eigenvectors have a singular top block"));
     }
     Ok(x)

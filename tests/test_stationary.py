@@ -1,0 +1,259 @@
+"""Steady-state filter, stationary analysis and continuous time: textbook cases B1-B4 and
+D1-D3, convergence of the filter to steady_state(), Van Loan against closed forms, irregular
+sampling, autocovariance and spectral density against each other and simulation."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+
+import kfast
+from modelgen import random_case
+
+CASES = json.loads((Path(__file__).parent / "data" / "textbook_cases.json").read_text())
+
+
+def test_b1_steady_state():
+    c = CASES["B1"]
+    ss = kfast.LinearGaussian(**c["model"]).steady_state()
+    for name, key in [("P_pred", "P_pred"), ("K_pred", "K_pred"), ("K", "K"), ("S", "S"), ("P_filt", "P_filt")]:
+        assert getattr(ss, name).item() == pytest.approx(c[key], abs=c["tol"])
+    assert ss.closed_loop_eigenvalues.item() == pytest.approx(c["closed_loop"], abs=c["tol"])
+
+
+@pytest.mark.parametrize("r", ["0.1", "1", "10"])
+def test_b2_ar2_in_noise(r):
+    c = CASES["B2"]
+    want = c["cases"][r]
+    model = kfast.LinearGaussian(c["F"], c["H"], np.diag([float(r), 0.0]), c["R"])
+    ss = model.steady_state()
+    np.testing.assert_allclose(ss.P_pred, want["P_pred"], atol=c["tol"] * 10, rtol=c["tol"])
+    np.testing.assert_allclose(ss.K.ravel(), want["K"], atol=c["tol"], rtol=c["tol"])
+    np.testing.assert_allclose(ss.K_pred.ravel(), want["K_pred"], atol=c["tol"], rtol=c["tol"])
+
+
+@pytest.mark.parametrize("case", range(2))
+@pytest.mark.parametrize("method", ["doubling", "newton", "iteration"])
+def test_b3_singular_r_returns_the_stabilizing_solution(case, method):
+    c = CASES["B3"]["cases"][case]
+    a, cc = c["a"], c["c"]
+    model = kfast.LinearGaussian([[-a, 1.0], [0.0, 0.0]], [[1.0, 0.0]], [[1.0, cc], [cc, cc * cc]], [[0.0]])
+    ss = model.steady_state(method=method)
+    tol = CASES["B3"]["tol"]
+    np.testing.assert_allclose(ss.P_pred, c["P"], atol=tol)
+    np.testing.assert_allclose(ss.K_pred.ravel(), c["K_pred"], atol=tol)
+    np.testing.assert_allclose(np.sort(ss.closed_loop_eigenvalues.real), np.sort(c["eig"]), atol=tol)
+
+
+def test_b4_no_steady_state_raises():
+    c = CASES["B4"]
+    with pytest.raises(kfast.KfastError, match=r"^A: is not stable .*no stationary covariance"):
+        kfast.stationary_cov_continuous([[c["continuous"]["F"]]], [[c["continuous"]["Q"]]])
+    # The Lyapunov equation itself has the solution -1/2, which is not a covariance.
+    assert kfast.solve_continuous_lyapunov([[1.0]], [[-1.0]]).item() == pytest.approx(c["continuous"]["lyapunov_solution"])
+    walk = kfast.LinearGaussian(c["discrete"]["F"], 1.0, c["discrete"]["Q"], 1.0)
+    with pytest.raises(kfast.KfastError, match=r"^F: is not stable \(spectral radius 1.000000\)"):
+        walk.stationary_cov()
+    with pytest.raises(kfast.KfastError, match="no stationary covariance"):
+        walk.autocovariance([0, 1])
+    with pytest.raises(kfast.KfastError, match="no stationary covariance"):
+        walk.spectral_density([0.1])
+    walk.steady_state()  # the filter still has a steady state (q > 0, r > 0)
+
+
+def test_d1_first_order_markov_mean_and_variance():
+    """G&A ex. 4.7: with a mean input E w = 1, m(t) = 1 - e^-t, P(t) = (1 - e^-2t)/2."""
+    dt, steps = 0.05, 200
+    model = kfast.LinearGaussian.from_continuous([[-1.0]], [[1.0]], [[1.0]], [[1.0]], dt=dt, B=[[1.0]])
+    fc = model.forecast([0.0], [[0.0]], steps, u=np.ones((steps, 1)))
+    t = dt * np.arange(steps)
+    np.testing.assert_allclose(fc.x[:, 0], 1 - np.exp(-t), atol=1e-12)
+    np.testing.assert_allclose(fc.P[:, 0, 0], (1 - np.exp(-2 * t)) / 2, atol=1e-12)
+    assert kfast.stationary_cov_continuous([[-1.0]], [[1.0]]).item() == pytest.approx(0.5, rel=1e-14)
+
+
+def test_d2_partial_convergence():
+    c = CASES["D2"]
+    e1 = np.exp(-1)
+    G = np.array([[0.0], [np.sqrt(1 - np.exp(-2))]])
+    model = kfast.LinearGaussian([[-1.0, 1.0], [0.0, e1]], np.eye(2), G @ G.T, np.eye(2))
+    fc = model.forecast(np.zeros(2), np.zeros((2, 2)), 400)
+    assert fc.P[-1, 1, 1] == pytest.approx(c["P22_limit"], abs=1e-10)
+    assert abs(fc.P[-1, 0, 1]) == pytest.approx(c["P12_limit"], abs=1e-10)
+    # P11 has no limit; its two-step increments alternate around tanh(1/2).
+    incr = np.diff(fc.P[-4:, 0, 0])
+    assert np.mean(incr[-2:]) == pytest.approx(c["P11_increment_limit"], abs=1e-9)
+    with pytest.raises(kfast.KfastError, match="no stationary covariance"):
+        model.stationary_cov()
+
+
+def resonator(c):
+    wr, wd = c["wr"], c["wd"]
+    return np.array([[0.0, 1.0], [-(wr**2 + wd**2), -2 * wd]]), np.diag([0.0, c["q"]])
+
+
+def test_d3_van_loan_matches_the_resonator_numbers_and_closed_form():
+    c = CASES["D3"]
+    A, Qc = resonator(c)
+    F, Qd, _ = kfast.discretize(A, Qc, c["dt"])
+    np.testing.assert_allclose(Qd, c["Qd"], rtol=c["rtol"])
+    np.testing.assert_allclose(F, sl.expm(A * c["dt"]), rtol=1e-13)
+    # Closed form (ALGORITHMS.md §11g) with omega the damped frequency, 1/tau the damping rate.
+    w, tau, q, h = np.sqrt(c["wr"] ** 2), 1 / c["wd"], c["q"], c["dt"]
+    S, C, E = np.sin(w * h), np.cos(w * h), np.exp(-2 * h / tau)
+    q11 = q * tau * (w**2 * tau**2 * (1 - E) - 2 * S * E * (S + w * tau * C)) / (4 * w**2 * (1 + w**2 * tau**2))
+    q12 = q * E * S**2 / (2 * w**2)
+    q22 = q * (w**2 * tau**2 * (1 - E) - 2 * S * E * (S - w * tau * C)) / (4 * w**2 * tau)
+    np.testing.assert_allclose(Qd, [[q11, q12], [q12, q22]], rtol=1e-12)
+    wr, wd = c["wr"], c["wd"]
+    Pi = kfast.stationary_cov_continuous(A, Qc)
+    np.testing.assert_allclose(Pi, np.diag([q / (4 * wd * (wr**2 + wd**2)), q / (4 * wd)]), rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("h", [1e-2, 1e-3, 1e-4])
+def test_van_loan_small_dt_tends_to_the_first_order_approximation(h):
+    """Qd = Qc h + (A Qc + Qc A') h^2 / 2 + O(h^3) (ALGORITHMS.md §8b)."""
+    c = CASES["D3"]
+    A, Qc = resonator(c)
+    _, Qd, _ = kfast.discretize(A, Qc, h)
+    second = Qc * h + (A @ Qc + Qc @ A.T) * h**2 / 2
+    assert np.abs(Qd - second).max() <= 10 * h**3 * np.abs(A).max() ** 2
+    assert np.abs(Qd - Qc * h).max() <= h**2 * np.abs(A).max()
+
+
+def test_discretize_input_matrix_and_stacks():
+    A = np.array([[0.0, 1.0], [-2.0, -0.5]])
+    B = np.array([[0.0], [1.0]])
+    F, Qd, Bd = kfast.discretize(A, np.eye(2), 0.3, B=B)
+    # Bd = A^-1 (F - I) B for invertible A
+    np.testing.assert_allclose(Bd, np.linalg.solve(A, F - np.eye(2)) @ B, rtol=1e-12)
+    Fs, Qs, Bs = kfast.discretize(A, np.eye(2), [0.3, 0.1, 0.3], B=B)
+    assert Fs.shape == (3, 2, 2) and Bs.shape == (3, 2, 1)
+    np.testing.assert_allclose(Fs[0], F, rtol=1e-14)
+    np.testing.assert_allclose(Qs[2], Qd, rtol=1e-14)
+
+
+def test_irregular_sampling_equals_stacked_per_step_matrices():
+    c = CASES["D3"]
+    A, Qc = resonator(c)
+    rng = np.random.default_rng(0)
+    times = np.cumsum(rng.uniform(0.01, 0.3, size=60))
+    y = rng.standard_normal((60, 1))
+    H, R = [[1.0, 0.0]], [[0.05]]
+    model = kfast.LinearGaussian.from_continuous(A, Qc, H, R, times=times)
+    dt = np.append(np.diff(times), np.diff(times)[-1])
+    F = np.stack([sl.expm(A * d) for d in dt])
+    Qd = np.stack([kfast.discretize(A, Qc, d).Qd for d in dt])
+    stacked = kfast.LinearGaussian(F, H, Qd, R)
+    a = model.filter(y, np.zeros(2), np.eye(2))
+    b = stacked.filter(y, np.zeros(2), np.eye(2))
+    np.testing.assert_allclose(a.x_filt, b.x_filt, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(a.P_filt, b.P_filt, rtol=1e-10, atol=1e-14)
+    assert a.loglik == pytest.approx(b.loglik, rel=1e-12)
+    same = kfast.LinearGaussian.from_continuous(A, Qc, H, R, dt=dt)
+    np.testing.assert_allclose(same.F, model.F, rtol=1e-14)
+    with pytest.raises(kfast.KfastError, match=r"^times at step 3: not strictly increasing"):
+        kfast.LinearGaussian.from_continuous(A, Qc, H, R, times=[0, 1, 2, 2, 3])
+    with pytest.raises(kfast.KfastError, match=r"^dt at step 1: must be positive"):
+        kfast.LinearGaussian.from_continuous(A, Qc, H, R, dt=[0.1, 0.0, 0.2])
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_time_varying_recursion_converges_to_steady_state(seed):
+    case = random_case(700 + seed, n=1 + seed % 5, m=1 + seed % 3, T=5, correlated=bool(seed % 2))
+    model = kfast.LinearGaussian(**case.model)
+    ss = model.steady_state()
+    y = np.zeros((400, model.n_obs))
+    res = model.filter(y, np.zeros(model.n_states), 10 * np.eye(model.n_states))
+    scale = np.abs(ss.P_pred).max()
+    np.testing.assert_allclose(res.P_pred[-1], ss.P_pred, atol=1e-9 * scale)
+    np.testing.assert_allclose(res.P_filt[-1], ss.P_filt, atol=1e-9 * scale)
+    np.testing.assert_allclose(res.K_pred[-1], ss.K_pred, atol=1e-8 * max(1, np.abs(ss.K_pred).max()))
+    np.testing.assert_allclose(res.K[-1], ss.K, atol=1e-8 * max(1, np.abs(ss.K).max()))
+    np.testing.assert_allclose(res.S[-1], ss.S, atol=1e-9 * np.abs(ss.S).max())
+    assert ss.residual <= 1e-10 and np.abs(ss.closed_loop_eigenvalues).max() < 1
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_steady_state_filter_equals_the_filter_once_converged(seed):
+    case = random_case(800 + seed, n=1 + seed % 4, m=1 + seed % 2, T=300, correlated=bool(seed % 2), inputs=bool(seed % 3 == 0))
+    model = kfast.LinearGaussian(**case.model)
+    ss = model.steady_state()
+    exact = model.filter(case.y, case.x0, ss.P_pred, u=case.u)  # started at the stationary P: the same gains
+    steady = model.filter(case.y, case.x0, None, u=case.u, steady_state=True)
+    for name in ("x_pred", "x_filt", "innov", "loglik_t", "P_pred", "K"):
+        np.testing.assert_allclose(getattr(steady, name), getattr(exact, name), rtol=1e-9, atol=1e-10)
+    # From another prior the ordinary filter converges to the same estimates.
+    other = model.filter(case.y, case.x0, 5 * np.eye(model.n_states), u=case.u)
+    np.testing.assert_allclose(steady.x_filt[-50:], other.x_filt[-50:], rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_converge_tol_changes_results_by_about_the_tolerance(seed):
+    case = random_case(900 + seed, n=1 + seed % 4, m=1 + seed % 2, T=400, missing="rows" if seed % 2 else "none")
+    model = kfast.LinearGaussian(**case.model)
+    exact = model.filter(case.y, case.x0, case.P0)
+    for tol in (1e-8, 1e-12):
+        fast = model.filter(case.y, case.x0, case.P0, converge_tol=tol)
+        scale = np.abs(exact.P_pred).max()
+        assert np.abs(fast.P_pred - exact.P_pred).max() <= 100 * tol * scale
+        assert np.abs(fast.x_filt - exact.x_filt).max() <= 1e3 * tol * max(1, np.abs(exact.x_filt).max())
+        assert fast.loglik == pytest.approx(exact.loglik, rel=1e3 * tol)
+    assert model.loglik(case.y, case.x0, case.P0, converge_tol=1e-12) == pytest.approx(exact.loglik, rel=1e-9)
+    with pytest.raises(kfast.KfastError, match="^converge_tol: must be >= 0"):
+        model.filter(case.y, case.x0, case.P0, converge_tol=-1)
+
+
+def test_converge_tol_needs_a_constant_model():
+    case = random_case(1, n=2, m=1, T=10, time_varying=True)
+    with pytest.raises(kfast.KfastError, match="^converge_tol: needs constant model matrices"):
+        kfast.LinearGaussian(**case.model).filter(case.y, case.x0, case.P0, converge_tol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_autocovariance_and_spectral_density(seed):
+    case = random_case(1000 + seed, n=1 + seed % 4, m=1 + seed % 3, T=5, correlated=bool(seed % 2))
+    model = kfast.LinearGaussian(**case.model)
+    lags = np.arange(-6, 7)
+    r = model.autocovariance(lags)
+    np.testing.assert_allclose(r[lags == 0][0], r[lags == 0][0].T, rtol=1e-12)
+    np.testing.assert_allclose(r[lags == -3][0], r[lags == 3][0].T, rtol=1e-12)
+    # Direct: Pi from scipy, r(k) = H F^(k-1) (F Pi H' + N).
+    F, H, N = model.F, model.H, model.N if model.N is not None else np.zeros((model.n_states, model.n_obs))
+    Pi = sl.solve_discrete_lyapunov(F, model.Q)
+    np.testing.assert_allclose(model.stationary_cov(), Pi, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(r[lags == 2][0], H @ F @ (F @ Pi @ H.T + N), rtol=1e-9, atol=1e-12)
+    # The spectrum integrates back to the autocovariance: r(k) = (1/2pi) int phi e^{iwk} dw.
+    w = np.linspace(-np.pi, np.pi, 4096, endpoint=False)
+    phi = model.spectral_density(w)
+    np.testing.assert_allclose(phi, np.conj(np.swapaxes(phi, 1, 2)), atol=1e-12)
+    for k in (0, 1, 4):
+        rk = (phi * np.exp(1j * w * k)[:, None, None]).mean(axis=0)
+        np.testing.assert_allclose(rk.real, r[lags == k][0], atol=1e-8 * np.abs(r).max())
+    # With a sampling interval h the density scales by h and the frequency by 1/h.
+    np.testing.assert_allclose(model.spectral_density(w[:5] / 0.1, h=0.1), 0.1 * phi[:5], rtol=1e-12)
+
+
+def test_innovations_form_reproduces_the_output_statistics():
+    """The innovations model (F, K_pred, H, S) has the same output autocovariance."""
+    case = random_case(5, n=3, m=2, T=5, correlated=True)
+    model = kfast.LinearGaussian(**case.model)
+    inn = model.innovations_form()
+    K, S = inn.K_pred, inn.S
+    twin = kfast.LinearGaussian(inn.F, inn.H, K @ S @ K.T, S, N=K @ S)
+    np.testing.assert_allclose(twin.autocovariance(range(5)), model.autocovariance(range(5)), rtol=1e-8, atol=1e-10)
+    # Its own steady state is P = 0 (ALGORITHMS.md §2: a sanity test of singular joint noise).
+    np.testing.assert_allclose(twin.steady_state().P_pred, 0, atol=1e-10)
+
+
+def test_kalman_bucy_gain():
+    c = CASES["D3"]
+    A, Qc = resonator(c)
+    H, Rc = np.array([[1.0, 0.0]]), np.array([[0.1]])
+    kb = kfast.kalman_bucy(A, Qc, H, Rc)
+    P = sl.solve_continuous_are(A.T, H.T, Qc, Rc)
+    np.testing.assert_allclose(kb.P, P, rtol=1e-10)
+    np.testing.assert_allclose(kb.K, P @ H.T @ np.linalg.inv(Rc), rtol=1e-10)
+    assert np.real(np.linalg.eigvals(A - kb.K @ H)).max() < 0
