@@ -40,9 +40,12 @@ from kfast.solvers import (
     solve_discrete_lyapunov,
 )
 
+from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
+
 __version__ = "0.1.0"
 
 __all__ = [
+    "models",
     "LinearGaussian",
     "FilterResult",
     "SmootherResult",
