@@ -18,13 +18,8 @@ import kfast
 
 
 def constant_velocity_2d(dt: float = 0.1, q: float = 1.0, r: float = 1.0) -> kfast.LinearGaussian:
-    """State (px, py, vx, vy); position measured with variance r per axis; white acceleration of
-    intensity q per axis, discretized exactly: Q per axis = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]."""
-    I2 = np.eye(2)
-    F = np.block([[I2, dt * I2], [0 * I2, I2]])
-    H = np.hstack([I2, 0 * I2])
-    Q = q * np.block([[dt**3 / 3 * I2, dt**2 / 2 * I2], [dt**2 / 2 * I2, dt * I2]])
-    return kfast.LinearGaussian(F, H, Q, r * I2)
+    """The demo's (and the benchmarks' "CV") model: kfast.models.constant_velocity in 2-D."""
+    return kfast.models.constant_velocity(2, dt, q=q, r=r)
 
 
 def simulate(model: kfast.LinearGaussian, x0, P0, steps: int, seed: int):
