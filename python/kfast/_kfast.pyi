@@ -69,6 +69,7 @@ class LinearGaussian:
         u: Optional[NDArray[np.float64]] = None,
         form: str = "joseph",
         converge_tol: Optional[float] = None,
+        outputs: Optional[list[str]] = None,
     ) -> dict[str, Any]: ...
     def loglik(
         self,

@@ -31,53 +31,53 @@ class FilterResult:
     """What the Kalman filter computed over T steps (n states, m outputs).
 
     Conventions: the prior (x0, P0) is x(0|-1), P(0|-1); row t of ``x_pred`` is x(t|t-1)
-    and of ``x_filt`` is x(t|t). Söderström Lemma 6.1, (6.22)-(6.27).
+    and of ``x_filt`` is x(t|t). Söderström Lemma 6.1, (6.22)-(6.27). Fields left out with
+    ``filter(..., outputs=...)`` are None.
     """
 
-    x_pred: np.ndarray
+    x_pred: Optional[np.ndarray] = None
     """x(t|t-1), shape (T, n)."""
-    P_pred: np.ndarray
+    P_pred: Optional[np.ndarray] = None
     """P(t|t-1), shape (T, n, n)."""
-    x_filt: np.ndarray
+    x_filt: Optional[np.ndarray] = None
     """x(t|t), shape (T, n)."""
-    P_filt: np.ndarray
+    P_filt: Optional[np.ndarray] = None
     """P(t|t), shape (T, n, n)."""
-    innov: np.ndarray
+    innov: Optional[np.ndarray] = None
     """Innovations e(t) = y(t) - H x(t|t-1) - D u(t), shape (T, m); NaN where y is missing."""
-    S: np.ndarray
+    S: Optional[np.ndarray] = None
     """Innovation (one-step forecast error) covariance H P(t|t-1) H' + R of all m components,
     shape (T, m, m), also where y is missing."""
-    K: np.ndarray
+    K: Optional[np.ndarray] = None
     """Filter gain P(t|t-1) H' S^-1, shape (T, n, m): x(t|t) = x(t|t-1) + K e(t).
     Columns of missing components are zero."""
-    K_pred: np.ndarray
+    K_pred: Optional[np.ndarray] = None
     """Predictor gain (F P(t|t-1) H' + N) S^-1, shape (T, n, m):
     x(t+1|t) = F x(t|t-1) + B u(t) + K_pred e(t). (statsmodels' ``kalman_gain``.)"""
-    loglik: float
+    loglik: float = float("nan")
     """Total log-likelihood sum_t log p(y(t) | y(0..t-1)) (Söderström (6.142))."""
-    loglik_t: np.ndarray
+    loglik_t: Optional[np.ndarray] = None
     """Per-step log-likelihood terms, shape (T,); 0 where nothing is observed."""
-    x_next: np.ndarray
+    x_next: Optional[np.ndarray] = None
     """x(T|T-1): the prediction one step past the data, shape (n,)."""
-    P_next: np.ndarray
+    P_next: Optional[np.ndarray] = None
     """P(T|T-1), shape (n, n)."""
     model: Optional["LinearGaussian"] = field(default=None, repr=False, compare=False)
     """The model that was filtered."""
 
     def __repr__(self) -> str:
-        T, n = self.x_filt.shape
-        m = self.innov.shape[1]
-        return f"FilterResult(T={T}, n={n}, m={m}, loglik={self.loglik:.6g})"
+        stored = [k for k in _FILTER_FIELDS if getattr(self, k) is not None]
+        return f"FilterResult(loglik={self.loglik:.6g}, fields={stored})"
 
     def forecast(self, steps: int, u=None) -> "Forecast":
         """Forecast the `steps` steps after the data, T..T+steps-1, from x(T|T-1), P(T|T-1)
         (u, shape (steps, k), holds the future inputs u(T), ...)."""
-        if self.model is None:
-            raise _kfast.KfastError("forecast: this FilterResult has no model attached")
+        if self.model is None or self.x_next is None or self.P_next is None:
+            raise _kfast.KfastError("forecast: this FilterResult has no model or no x_next, P_next")
         return self.model.forecast(self.x_next, self.P_next, steps, u=u)
 
 
-_FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k != "model")
+_FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k not in ("model", "loglik"))
 
 
 @dataclass(frozen=True, repr=False)
@@ -232,7 +232,15 @@ class LinearGaussian:
         return f"LinearGaussian(n_states={self.n_states}, n_obs={self.n_obs}, n_inputs={self.n_inputs}{tv})"
 
     def filter(
-        self, y, x0, P0=None, u=None, form: str = "joseph", steady_state: bool = False, converge_tol=None
+        self,
+        y,
+        x0,
+        P0=None,
+        u=None,
+        form: str = "joseph",
+        steady_state: bool = False,
+        converge_tol=None,
+        outputs=None,
     ) -> FilterResult:
         """Kalman filter over y, shape (T, m) (or (T,) when m = 1); NaN marks a missing value.
 
@@ -251,6 +259,8 @@ class LinearGaussian:
         converge_tol: switch to constant gains once max|P(t+1|t) - P(t|t-1)| <= converge_tol
         * max(1, max|P|) at a fully observed step, like statsmodels' steady-state shortcut;
         results then differ from the exact filter by about that tolerance. Off by default.
+        outputs: the names of the fields to store (e.g. ("x_filt", "P_filt")); the others
+        are None, which saves their memory and time. All by default.
         """
         if steady_state:
             if converge_tol is not None:
@@ -260,7 +270,9 @@ class LinearGaussian:
         elif P0 is None:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
-        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol))
+        if outputs is not None:
+            outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=outputs)
         return FilterResult(**out, model=self)
 
     def loglik(self, y, x0, P0, u=None, form: str = "joseph", converge_tol=None) -> float:
@@ -318,7 +330,7 @@ class LinearGaussian:
         A singular P(t+1|t) is handled with its pseudo-inverse.
         """
         out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form))
-        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS}, model=self)
+        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
 
     def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:

@@ -22,33 +22,22 @@ def constant_velocity_2d(dt: float = 0.1, q: float = 1.0, r: float = 1.0) -> kfa
     return kfast.models.constant_velocity(2, dt, q=q, r=r)
 
 
-def simulate(model: kfast.LinearGaussian, x0, P0, steps: int, seed: int):
-    """States and measurements drawn from the model (N = 0, no inputs)."""
-    rng = np.random.default_rng(seed)
-    n, m = model.n_states, model.n_obs
-    x = np.empty((steps, n))
-    w = rng.multivariate_normal(np.zeros(n), model.Q, size=steps)
-    v = rng.multivariate_normal(np.zeros(m), model.R, size=steps)
-    x[0] = rng.multivariate_normal(x0, P0)
-    for t in range(steps - 1):
-        x[t + 1] = model.F @ x[t] + w[t]
-    return x, x @ model.H.T + v
-
-
 def demo(steps: int, seed: int) -> None:
     model = constant_velocity_2d()
     x0 = np.array([1.0, -1.0, 0.5, 0.2])
     P0 = np.diag([10.0, 10.0, 1.0, 1.0])
-    truth, y = simulate(model, x0, P0, steps, seed)
-    res = model.filter(y, x0, P0)
+    truth, y = model.simulate(steps, x0, P0, seed=seed)
+    res = model.filter(y, x0, P0, outputs=("x_filt",))
+    x_filt = res.x_filt
+    assert x_filt is not None
 
     def rmse(err):
         return float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
 
     print(f"kfast {kfast.__version__} demo: 2-D constant-velocity target, {steps} steps, dt = 0.1, seed {seed}")
     print(f"  position RMSE of the raw measurements : {rmse(y - truth[:, :2]):.4f}")
-    print(f"  position RMSE of the filtered estimate: {rmse(res.x_filt[:, :2] - truth[:, :2]):.4f}")
-    print(f"  velocity RMSE of the filtered estimate: {rmse(res.x_filt[:, 2:] - truth[:, 2:]):.4f}")
+    print(f"  position RMSE of the filtered estimate: {rmse(x_filt[:, :2] - truth[:, :2]):.4f}")
+    print(f"  velocity RMSE of the filtered estimate: {rmse(x_filt[:, 2:] - truth[:, 2:]):.4f}")
     print(f"  log-likelihood of the measurements    : {res.loglik:.4f}")
 
 

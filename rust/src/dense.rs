@@ -5,7 +5,7 @@
 //! of `r * c` numbers holding a row-major `r × c` matrix.
 
 /// `c[m×n] = a[m×k] · b[k×n]`.
-#[inline]
+#[inline(always)]
 pub(crate) fn mul(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
     for i in 0..m {
         let ci = &mut c[i * n..(i + 1) * n];
@@ -21,7 +21,7 @@ pub(crate) fn mul(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: us
 }
 
 /// `c[m×n] = a[m×k] · b[n×k]'`.
-#[inline]
+#[inline(always)]
 pub(crate) fn mul_bt(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
     for i in 0..m {
         let ai = &a[i * k..(i + 1) * k];
@@ -33,7 +33,7 @@ pub(crate) fn mul_bt(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n:
 }
 
 /// `y[m] = a[m×k] · x[k]`.
-#[inline]
+#[inline(always)]
 pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
         y[i] = a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum();
@@ -41,7 +41,7 @@ pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
 }
 
 /// `y[m] += a[m×k] · x[k]`.
-#[inline]
+#[inline(always)]
 pub(crate) fn mul_vec_add(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
         y[i] += a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
@@ -49,7 +49,7 @@ pub(crate) fn mul_vec_add(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usiz
 }
 
 /// `bt[c×r] = b[r×c]'`.
-#[inline]
+#[inline(always)]
 pub(crate) fn transpose(bt: &mut [f64], b: &[f64], r: usize, c: usize) {
     for i in 0..r {
         for j in 0..c {
@@ -59,7 +59,7 @@ pub(crate) fn transpose(bt: &mut [f64], b: &[f64], r: usize, c: usize) {
 }
 
 /// Replaces the square `a[n×n]` by `(a + a') / 2`.
-#[inline]
+#[inline(always)]
 pub(crate) fn symmetrize(a: &mut [f64], n: usize) {
     for i in 0..n {
         for j in 0..i {
@@ -73,7 +73,7 @@ pub(crate) fn symmetrize(a: &mut [f64], n: usize) {
 /// Cholesky factorization in place: on success the lower triangle of `a[n×n]` holds `L` with
 /// `a = L L'` (the strict upper triangle is left as it was). Returns the index of the first
 /// pivot that is not positive (or not finite) on failure.
-#[inline]
+#[inline(always)]
 pub(crate) fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
     for j in 0..n {
         let mut d = a[j * n + j];
@@ -99,7 +99,7 @@ pub(crate) fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
 }
 
 /// Solves `L X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
-#[inline]
+#[inline(always)]
 pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     for i in 0..n {
         for j in 0..i {
@@ -116,7 +116,7 @@ pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
 }
 
 /// Solves `L' X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
-#[inline]
+#[inline(always)]
 pub(crate) fn solve_lower_t(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     for i in (0..n).rev() {
         for j in i + 1..n {

@@ -10,6 +10,7 @@ pub(crate) mod step;
 
 use std::sync::Arc;
 
+use step::Dims;
 pub use step::UpdateForm;
 pub(crate) use step::Workspace;
 
@@ -101,21 +102,22 @@ pub struct FilterResult {
     pub p_next: Vec<f64>,
 }
 
-/// Mutable output buffers for [`filter_into`], each of the size documented on [`FilterResult`].
-/// They are written in full.
-#[derive(Debug)]
+/// Output buffers for [`filter_into`], each of the size documented on [`FilterResult`];
+/// `None` skips that output (it is then neither computed into memory nor copied). Given
+/// buffers are written in full.
+#[derive(Debug, Default)]
 pub struct FilterOutputs<'a> {
-    pub x_pred: &'a mut [f64],
-    pub p_pred: &'a mut [f64],
-    pub x_filt: &'a mut [f64],
-    pub p_filt: &'a mut [f64],
-    pub innov: &'a mut [f64],
-    pub innovation_cov: &'a mut [f64],
-    pub gain: &'a mut [f64],
-    pub gain_pred: &'a mut [f64],
-    pub loglik_t: &'a mut [f64],
-    pub x_next: &'a mut [f64],
-    pub p_next: &'a mut [f64],
+    pub x_pred: Option<&'a mut [f64]>,
+    pub p_pred: Option<&'a mut [f64]>,
+    pub x_filt: Option<&'a mut [f64]>,
+    pub p_filt: Option<&'a mut [f64]>,
+    pub innov: Option<&'a mut [f64]>,
+    pub innovation_cov: Option<&'a mut [f64]>,
+    pub gain: Option<&'a mut [f64]>,
+    pub gain_pred: Option<&'a mut [f64]>,
+    pub loglik_t: Option<&'a mut [f64]>,
+    pub x_next: Option<&'a mut [f64]>,
+    pub p_next: Option<&'a mut [f64]>,
 }
 
 impl FilterResult {
@@ -139,17 +141,17 @@ impl FilterResult {
 
     fn outputs(&mut self) -> FilterOutputs<'_> {
         FilterOutputs {
-            x_pred: &mut self.x_pred,
-            p_pred: &mut self.p_pred,
-            x_filt: &mut self.x_filt,
-            p_filt: &mut self.p_filt,
-            innov: &mut self.innov,
-            innovation_cov: &mut self.innovation_cov,
-            gain: &mut self.gain,
-            gain_pred: &mut self.gain_pred,
-            loglik_t: &mut self.loglik_t,
-            x_next: &mut self.x_next,
-            p_next: &mut self.p_next,
+            x_pred: Some(&mut self.x_pred),
+            p_pred: Some(&mut self.p_pred),
+            x_filt: Some(&mut self.x_filt),
+            p_filt: Some(&mut self.p_filt),
+            innov: Some(&mut self.innov),
+            innovation_cov: Some(&mut self.innovation_cov),
+            gain: Some(&mut self.gain),
+            gain_pred: Some(&mut self.gain_pred),
+            loglik_t: Some(&mut self.loglik_t),
+            x_next: Some(&mut self.x_next),
+            p_next: Some(&mut self.p_next),
         }
     }
 }
@@ -177,31 +179,27 @@ pub fn filter_into(
     x0: &[f64],
     p0: &[f64],
     options: impl Into<FilterOptions>,
-    out: FilterOutputs<'_>,
+    mut out: FilterOutputs<'_>,
 ) -> Result<f64> {
     let (n, m) = (model.n_states(), model.n_obs());
     let options = options.into();
-    let form = options.form;
     let steps = check_data(model, y, u, x0, p0)?;
     check_outputs(&out, steps, n, m)?;
     let mut ws = start(model, x0, p0);
     ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let mut total = 0.0;
-    for t in 0..steps {
-        out.x_pred[t * n..(t + 1) * n].copy_from_slice(&ws.x_pred);
-        out.p_pred[t * n * n..(t + 1) * n * n].copy_from_slice(&ws.p_pred);
-        advance(model, &mut ws, y, u, form, t)?;
-        total += ws.loglik_t;
-        out.x_filt[t * n..(t + 1) * n].copy_from_slice(&ws.x_filt);
-        out.p_filt[t * n * n..(t + 1) * n * n].copy_from_slice(&ws.p_filt);
-        out.innov[t * m..(t + 1) * m].copy_from_slice(&ws.innov);
-        out.innovation_cov[t * m * m..(t + 1) * m * m].copy_from_slice(&ws.s_full);
-        out.gain[t * n * m..(t + 1) * n * m].copy_from_slice(&ws.gain);
-        out.gain_pred[t * n * m..(t + 1) * n * m].copy_from_slice(&ws.gain_pred);
-        out.loglik_t[t] = ws.loglik_t;
+    let run = Run {
+        model,
+        y,
+        u,
+        form: options.form,
+    };
+    let total = with_dims!(n, m, run.filter(&mut ws, &mut out))?;
+    if let Some(o) = out.x_next.as_deref_mut() {
+        o.copy_from_slice(&ws.x_pred);
     }
-    out.x_next.copy_from_slice(&ws.x_pred);
-    out.p_next.copy_from_slice(&ws.p_pred);
+    if let Some(o) = out.p_next.as_deref_mut() {
+        o.copy_from_slice(&ws.p_pred);
+    }
     Ok(total)
 }
 
@@ -216,16 +214,20 @@ pub fn loglik(
     options: impl Into<FilterOptions>,
 ) -> Result<f64> {
     let options = options.into();
-    let form = options.form;
-    let steps = check_data(model, y, u, x0, p0)?;
+    check_data(model, y, u, x0, p0)?;
     let mut ws = start(model, x0, p0);
     ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let mut total = 0.0;
-    for t in 0..steps {
-        advance(model, &mut ws, y, u, form, t)?;
-        total += ws.loglik_t;
-    }
-    Ok(total)
+    let run = Run {
+        model,
+        y,
+        u,
+        form: options.form,
+    };
+    with_dims!(
+        model.n_states(),
+        model.n_obs(),
+        run.filter(&mut ws, &mut FilterOutputs::default())
+    )
 }
 
 pub(crate) fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
@@ -236,21 +238,79 @@ pub(crate) fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace
     ws
 }
 
-/// Update with `y[t]`, then the time update to `t + 1`.
-#[inline]
-fn advance(
-    model: &LinearGaussian,
-    ws: &mut Workspace,
-    y: Series<'_>,
-    u: Option<Series<'_>>,
-    form: UpdateForm,
-    t: usize,
-) -> Result<()> {
-    let sys = model.at(t);
-    let u_t = u.map(|u| u.row(t));
-    ws.update(&sys, y.row(t), u_t, form, t)?;
-    ws.predict(&sys, u_t);
-    Ok(())
+/// Calls `$run.$method(d, args)` with `d` the compile-time sizes when (n, m) is one of the
+/// common small ones, so that the step kernels are unrolled for them, and with the run-time
+/// sizes otherwise. The arithmetic is the same either way.
+macro_rules! with_dims {
+    ($n:expr, $m:expr, $run:ident . $method:ident ( $($arg:expr),* )) => {{
+        use $crate::filter::step::{Dyn, Fixed};
+        match ($n, $m) {
+            (1, 1) => $run.$method(Fixed::<1, 1>, $($arg),*),
+            (2, 1) => $run.$method(Fixed::<2, 1>, $($arg),*),
+            (2, 2) => $run.$method(Fixed::<2, 2>, $($arg),*),
+            (3, 1) => $run.$method(Fixed::<3, 1>, $($arg),*),
+            (3, 2) => $run.$method(Fixed::<3, 2>, $($arg),*),
+            (3, 3) => $run.$method(Fixed::<3, 3>, $($arg),*),
+            (4, 1) => $run.$method(Fixed::<4, 1>, $($arg),*),
+            (4, 2) => $run.$method(Fixed::<4, 2>, $($arg),*),
+            (4, 4) => $run.$method(Fixed::<4, 4>, $($arg),*),
+            (6, 2) => $run.$method(Fixed::<6, 2>, $($arg),*),
+            (6, 3) => $run.$method(Fixed::<6, 3>, $($arg),*),
+            (8, 4) => $run.$method(Fixed::<8, 4>, $($arg),*),
+            (n, m) => $run.$method(Dyn { n, m }, $($arg),*),
+        }
+    }};
+}
+pub(crate) use with_dims;
+
+/// One pass of the filter over the data.
+#[derive(Clone, Copy)]
+pub(crate) struct Run<'a> {
+    pub model: &'a LinearGaussian,
+    pub y: Series<'a>,
+    pub u: Option<Series<'a>>,
+    pub form: UpdateForm,
+}
+
+impl Run<'_> {
+    /// Update with `y[t]`, then the time update to `t + 1`.
+    #[inline(always)]
+    pub fn advance<D: Dims>(&self, d: D, ws: &mut Workspace, t: usize) -> Result<()> {
+        let sys = self.model.at(t);
+        let u_t = self.u.map(|u| u.row(t));
+        ws.update(d, &sys, self.y.row(t), u_t, self.form, t)?;
+        ws.predict(d, &sys, u_t);
+        Ok(())
+    }
+
+    /// The time loop, storing the outputs that are given; returns the log-likelihood.
+    fn filter<D: Dims>(&self, d: D, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Result<f64> {
+        let (n, m) = (d.n(), d.m());
+        let mut total = 0.0;
+        for t in 0..self.y.steps() {
+            store(&mut out.x_pred, t, &ws.x_pred);
+            store(&mut out.p_pred, t, &ws.p_pred);
+            self.advance(d, ws, t)?;
+            total += ws.loglik_t;
+            store(&mut out.x_filt, t, &ws.x_filt[..n]);
+            store(&mut out.p_filt, t, &ws.p_filt[..n * n]);
+            store(&mut out.innov, t, &ws.innov[..m]);
+            store(&mut out.innovation_cov, t, &ws.s_full[..m * m]);
+            store(&mut out.gain, t, &ws.gain[..n * m]);
+            store(&mut out.gain_pred, t, &ws.gain_pred[..n * m]);
+            store(&mut out.loglik_t, t, &[ws.loglik_t]);
+        }
+        Ok(total)
+    }
+}
+
+/// Row t of an optional output: `out[t * len..(t + 1) * len] = src`.
+#[inline(always)]
+fn store(out: &mut Option<&mut [f64]>, t: usize, src: &[f64]) {
+    if let Some(o) = out.as_deref_mut() {
+        let len = src.len();
+        o[t * len..(t + 1) * len].copy_from_slice(src);
+    }
 }
 
 fn check_converge_tol(model: &LinearGaussian, tol: Option<f64>) -> Result<Option<f64>> {
@@ -266,24 +326,26 @@ fn check_converge_tol(model: &LinearGaussian, tol: Option<f64>) -> Result<Option
 
 fn check_outputs(out: &FilterOutputs<'_>, steps: usize, n: usize, m: usize) -> Result<()> {
     let sizes = [
-        ("x_pred", out.x_pred.len(), steps * n),
-        ("P_pred", out.p_pred.len(), steps * n * n),
-        ("x_filt", out.x_filt.len(), steps * n),
-        ("P_filt", out.p_filt.len(), steps * n * n),
-        ("innov", out.innov.len(), steps * m),
-        ("S", out.innovation_cov.len(), steps * m * m),
-        ("K", out.gain.len(), steps * n * m),
-        ("K_pred", out.gain_pred.len(), steps * n * m),
-        ("loglik_t", out.loglik_t.len(), steps),
-        ("x_next", out.x_next.len(), n),
-        ("P_next", out.p_next.len(), n * n),
+        ("x_pred", &out.x_pred, steps * n),
+        ("P_pred", &out.p_pred, steps * n * n),
+        ("x_filt", &out.x_filt, steps * n),
+        ("P_filt", &out.p_filt, steps * n * n),
+        ("innov", &out.innov, steps * m),
+        ("S", &out.innovation_cov, steps * m * m),
+        ("K", &out.gain, steps * n * m),
+        ("K_pred", &out.gain_pred, steps * n * m),
+        ("loglik_t", &out.loglik_t, steps),
+        ("x_next", &out.x_next, n),
+        ("P_next", &out.p_next, n * n),
     ];
-    for (arg, got, want) in sizes {
-        if got != want {
-            return Err(Error::arg(
-                arg,
-                format!("output buffer has {got} entries, needs {want}"),
-            ));
+    for (arg, buf, want) in sizes {
+        if let Some(buf) = buf {
+            if buf.len() != want {
+                return Err(Error::arg(
+                    arg,
+                    format!("output buffer has {} entries, needs {want}", buf.len()),
+                ));
+            }
         }
     }
     Ok(())
@@ -448,7 +510,8 @@ impl KalmanFilter {
             return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
         }
         let sys = self.model.at(self.t);
-        self.ws.update(&sys, y, u, self.form, self.t)?;
+        let d = self.ws.dims();
+        self.ws.update(d, &sys, y, u, self.form, self.t)?;
         self.loglik += self.ws.loglik_t;
         self.updated = true;
         Ok(())
@@ -461,7 +524,8 @@ impl KalmanFilter {
             self.ws.skip_update();
         }
         let sys = self.model.at(self.t);
-        self.ws.predict(&sys, u);
+        let d = self.ws.dims();
+        self.ws.predict(d, &sys, u);
         self.t += 1;
         self.updated = false;
         Ok(())

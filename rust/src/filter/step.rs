@@ -33,6 +33,47 @@ pub enum UpdateForm {
 
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
 
+/// The state and output sizes (n, m) of a step. [`Fixed`] makes them compile-time constants so
+/// that the small dense loops are unrolled for the common sizes (chosen once per call by the
+/// drivers); [`Dyn`] serves every other size. The arithmetic is identical.
+pub(crate) trait Dims: Copy {
+    fn n(self) -> usize;
+    fn m(self) -> usize;
+}
+
+/// Sizes known at run time.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Dyn {
+    pub n: usize,
+    pub m: usize,
+}
+
+impl Dims for Dyn {
+    #[inline(always)]
+    fn n(self) -> usize {
+        self.n
+    }
+    #[inline(always)]
+    fn m(self) -> usize {
+        self.m
+    }
+}
+
+/// Sizes known at compile time.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Fixed<const N: usize, const M: usize>;
+
+impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
+    #[inline(always)]
+    fn n(self) -> usize {
+        N
+    }
+    #[inline(always)]
+    fn m(self) -> usize {
+        M
+    }
+}
+
 /// Buffers for one filter; sizes fixed by (n, m, k) at construction.
 #[derive(Debug, Clone)]
 pub(crate) struct Workspace {
@@ -122,16 +163,23 @@ impl Workspace {
         }
     }
 
+    /// The run-time sizes.
+    pub fn dims(&self) -> Dyn {
+        Dyn { n: self.n, m: self.m }
+    }
+
     /// Measurement update with `y` (NaN = missing), from (x_pred, p_pred) to (x_filt, p_filt).
-    pub fn update(
+    #[inline(always)]
+    pub fn update<D: Dims>(
         &mut self,
+        d: D,
         sys: &StepView<'_>,
         y: &[f64],
         u: Option<&[f64]>,
         form: UpdateForm,
         t: usize,
     ) -> Result<()> {
-        let (n, m) = (self.n, self.m);
+        let (n, m) = (d.n(), d.m());
         // Innovation of every component: e = y − H x − D u (NaN where y is missing).
         mul_vec(&mut self.innov, sys.h, &self.x_pred, m, n);
         if let (Some(d), Some(u)) = (sys.d, u) {
@@ -142,7 +190,7 @@ impl Workspace {
         }
         if self.frozen {
             if y.iter().all(|v| !v.is_nan()) {
-                self.update_frozen();
+                self.update_frozen(d);
                 return Ok(());
             }
             self.frozen = false;
@@ -169,9 +217,19 @@ impl Workspace {
             self.loglik_t = 0.0;
             return Ok(());
         }
-        self.gather_observed(sys);
-        let mo = self.m_obs;
+        self.gather_observed(d, sys);
+        // The fully observed case gets the compile-time m.
+        if self.m_obs == m {
+            self.update_observed(d, m, form, t)
+        } else {
+            self.update_observed(d, self.m_obs, form, t)
+        }
+    }
 
+    /// The update from the gathered blocks of the `mo` observed components.
+    #[inline(always)]
+    fn update_observed<D: Dims>(&mut self, d: D, mo: usize, form: UpdateForm, t: usize) -> Result<()> {
+        let (n, m) = (d.n(), d.m());
         cholesky(&mut self.chol[..mo * mo], mo).map_err(|j| Error::InnovationCovariance {
             step: t,
             problem: format!(
@@ -241,8 +299,9 @@ impl Workspace {
 
     /// The update with frozen gains (all components observed, as at the step that froze):
     /// only the state moves; S, K, P(t|t) are those of that step.
-    fn update_frozen(&mut self) {
-        let (n, m) = (self.n, self.m);
+    #[inline(always)]
+    fn update_frozen<D: Dims>(&mut self, d: D) {
+        let (n, m) = (d.n(), d.m());
         self.e_o[..m].copy_from_slice(&self.innov);
         let chol = &self.chol[..m * m];
         let s_inv_e = &mut self.s_inv_e[..m];
@@ -256,8 +315,9 @@ impl Workspace {
     }
 
     /// Copies the observed components' blocks (all of them when nothing is missing).
-    fn gather_observed(&mut self, sys: &StepView<'_>) {
-        let (n, m, mo) = (self.n, self.m, self.m_obs);
+    #[inline(always)]
+    fn gather_observed<D: Dims>(&mut self, d: D, sys: &StepView<'_>) {
+        let (n, m, mo) = (d.n(), d.m(), self.m_obs);
         let obs = &self.obs[..mo];
         for (a, &i) in obs.iter().enumerate() {
             self.e_o[a] = self.innov[i];
@@ -290,8 +350,9 @@ impl Workspace {
 
     /// Time update from (x_filt, p_filt) to the next (x_pred, p_pred), and the predictor gain
     /// `K_pred = F K + N S⁻¹` of the update just made.
-    pub fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
-        let (n, m, mo) = (self.n, self.m, self.m_obs);
+    #[inline(always)]
+    pub fn predict<D: Dims>(&mut self, d: D, sys: &StepView<'_>, u: Option<&[f64]>) {
+        let (n, m, mo) = (d.n(), d.m(), self.m_obs);
         mul_vec(&mut self.x_pred, sys.f, &self.x_filt, n, n);
         if let (Some(b), Some(u)) = (sys.b, u) {
             mul_vec_add(&mut self.x_pred, b, u, n, self.k);
@@ -311,44 +372,10 @@ impl Workspace {
             *p += q;
         }
         self.gain_pred.fill(0.0);
-        if mo > 0 {
-            // F K (n × mo), with K = gain_t'.
-            let kgain = &mut self.nm_a[..n * mo];
-            transpose(kgain, &self.gain_t[..mo * n], mo, n);
-            let fk = &mut self.nm_b[..n * mo];
-            mul(fk, sys.f, kgain, n, n, mo);
-            if sys.n.is_some() {
-                let n_o = &self.n_o[..n * mo];
-                // x̂(t+1|t) += N S⁻¹ e
-                mul_vec_add(&mut self.x_pred, n_o, &self.s_inv_e[..mo], n, mo);
-                // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
-                let g_t = &mut self.mn_a[..mo * n];
-                transpose(g_t, n_o, n, mo);
-                let chol = &self.chol[..mo * mo];
-                solve_lower(chol, g_t, mo, n);
-                solve_lower_t(chol, g_t, mo, n);
-                // P(t+1|t) −= K_pred N' + N (F K)'
-                for r in 0..n {
-                    for c in 0..n {
-                        let mut acc = 0.0;
-                        for a in 0..mo {
-                            let kp = fk[r * mo + a] + g_t[a * n + r];
-                            acc += kp * n_o[c * mo + a] + n_o[r * mo + a] * fk[c * mo + a];
-                        }
-                        self.p_pred[r * n + c] -= acc;
-                    }
-                }
-                for r in 0..n {
-                    for a in 0..mo {
-                        fk[r * mo + a] += g_t[a * n + r];
-                    }
-                }
-            }
-            for (a, &i) in self.obs[..mo].iter().enumerate() {
-                for r in 0..n {
-                    self.gain_pred[r * m + i] = fk[r * mo + a];
-                }
-            }
+        if mo == m {
+            self.predictor_gain(d, m, sys);
+        } else if mo > 0 {
+            self.predictor_gain(d, mo, sys);
         }
         symmetrize(&mut self.p_pred, n);
         if let (Some(tol), true) = (self.converge_tol, mo == m) {
@@ -360,6 +387,50 @@ impl Workspace {
                 .fold(0.0, f64::max);
             let size = self.p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
             self.frozen = change <= tol * size;
+        }
+    }
+
+    /// K_pred = F K + N S⁻¹ over the `mo` observed components, and the N terms of the time
+    /// update (Söderström (6.25), (6.26)).
+    #[inline(always)]
+    fn predictor_gain<D: Dims>(&mut self, d: D, mo: usize, sys: &StepView<'_>) {
+        let (n, m) = (d.n(), d.m());
+        // F K (n × mo), with K = gain_t'.
+        let kgain = &mut self.nm_a[..n * mo];
+        transpose(kgain, &self.gain_t[..mo * n], mo, n);
+        let fk = &mut self.nm_b[..n * mo];
+        mul(fk, sys.f, kgain, n, n, mo);
+        if sys.n.is_some() {
+            let n_o = &self.n_o[..n * mo];
+            // x̂(t+1|t) += N S⁻¹ e
+            mul_vec_add(&mut self.x_pred, n_o, &self.s_inv_e[..mo], n, mo);
+            // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
+            let g_t = &mut self.mn_a[..mo * n];
+            transpose(g_t, n_o, n, mo);
+            let chol = &self.chol[..mo * mo];
+            solve_lower(chol, g_t, mo, n);
+            solve_lower_t(chol, g_t, mo, n);
+            // P(t+1|t) −= K_pred N' + N (F K)'
+            for r in 0..n {
+                for c in 0..n {
+                    let mut acc = 0.0;
+                    for a in 0..mo {
+                        let kp = fk[r * mo + a] + g_t[a * n + r];
+                        acc += kp * n_o[c * mo + a] + n_o[r * mo + a] * fk[c * mo + a];
+                    }
+                    self.p_pred[r * n + c] -= acc;
+                }
+            }
+            for r in 0..n {
+                for a in 0..mo {
+                    fk[r * mo + a] += g_t[a * n + r];
+                }
+            }
+        }
+        for (a, &i) in self.obs[..mo].iter().enumerate() {
+            for r in 0..n {
+                self.gain_pred[r * m + i] = fk[r * mo + a];
+            }
         }
     }
 }

@@ -162,24 +162,33 @@ impl<'py> OutArrays<'py> {
         }
     }
 
-    /// The filter's outputs, in the order of [`FilterOutputs`].
-    fn for_filter(py: Python<'py>, steps: usize, n: usize, m: usize) -> Self {
-        Self::new(
-            py,
-            &[
-                ("x_pred", &[steps, n]),
-                ("P_pred", &[steps, n, n]),
-                ("x_filt", &[steps, n]),
-                ("P_filt", &[steps, n, n]),
-                ("innov", &[steps, m]),
-                ("S", &[steps, m, m]),
-                ("K", &[steps, n, m]),
-                ("K_pred", &[steps, n, m]),
-                ("loglik_t", &[steps]),
-                ("x_next", &[n]),
-                ("P_next", &[n, n]),
-            ],
-        )
+    /// The filter's outputs named in `wanted` (all of [`FILTER_FIELDS`] when `None`).
+    fn for_filter(py: Python<'py>, steps: usize, n: usize, m: usize, wanted: Option<&[String]>) -> PyResult<Self> {
+        let shape = |name: &str| -> Vec<usize> {
+            match name {
+                "x_pred" | "x_filt" => vec![steps, n],
+                "P_pred" | "P_filt" => vec![steps, n, n],
+                "innov" => vec![steps, m],
+                "S" => vec![steps, m, m],
+                "K" | "K_pred" => vec![steps, n, m],
+                "loglik_t" => vec![steps],
+                "x_next" => vec![n],
+                _ => vec![n, n], // P_next
+            }
+        };
+        if let Some(bad) = wanted.and_then(|w| w.iter().find(|name| !FILTER_FIELDS.contains(&name.as_str()))) {
+            return Err(KfastError::new_err(format!(
+                "outputs: unknown field {bad:?}; choose from {FILTER_FIELDS:?}"
+            )));
+        }
+        let names: Vec<&'static str> = FILTER_FIELDS
+            .iter()
+            .copied()
+            .filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f)))
+            .collect();
+        let shapes: Vec<Vec<usize>> = names.iter().map(|f| shape(f)).collect();
+        let specs: Vec<(&'static str, &[usize])> = names.iter().zip(&shapes).map(|(f, s)| (*f, s.as_slice())).collect();
+        Ok(Self::new(py, &specs))
     }
 
     /// Appends more arrays.
@@ -210,25 +219,32 @@ impl<'py> OutArrays<'py> {
     }
 }
 
-/// The first eleven slices as [`FilterOutputs`] (see [`OutArrays::for_filter`]).
-fn filter_outputs<'a>(s: &'a mut [&mut [f64]]) -> FilterOutputs<'a> {
-    let [x_pred, p_pred, x_filt, p_filt, innov, innovation_cov, gain, gain_pred, loglik_t, x_next, p_next, ..] = s
-    else {
-        unreachable!("OutArrays::for_filter makes eleven arrays")
-    };
-    FilterOutputs {
-        x_pred,
-        p_pred,
-        x_filt,
-        p_filt,
-        innov,
-        innovation_cov,
-        gain,
-        gain_pred,
-        loglik_t,
-        x_next,
-        p_next,
+/// The fields of a FilterResult, in the order of [`FilterOutputs`].
+const FILTER_FIELDS: [&str; 11] = [
+    "x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next",
+];
+
+/// The filter's arrays among `names`/`slices` as [`FilterOutputs`] (absent ones are `None`).
+fn filter_outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> FilterOutputs<'a> {
+    let mut out = FilterOutputs::default();
+    for (name, slice) in names.iter().zip(slices.iter_mut()) {
+        let field = match *name {
+            "x_pred" => &mut out.x_pred,
+            "P_pred" => &mut out.p_pred,
+            "x_filt" => &mut out.x_filt,
+            "P_filt" => &mut out.p_filt,
+            "innov" => &mut out.innov,
+            "S" => &mut out.innovation_cov,
+            "K" => &mut out.gain,
+            "K_pred" => &mut out.gain_pred,
+            "loglik_t" => &mut out.loglik_t,
+            "x_next" => &mut out.x_next,
+            "P_next" => &mut out.p_next,
+            _ => continue,
+        };
+        *field = Some(&mut **slice);
     }
+    out
 }
 
 #[pymodule]

@@ -79,8 +79,9 @@ impl PyLinearGaussian {
         self.inner.steps()
     }
 
-    /// Runs the filter; returns a dict of the FilterResult fields.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph", converge_tol=None))]
+    /// Runs the filter; returns a dict of the FilterResult fields named in `outputs` (all by
+    /// default).
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph", converge_tol=None, outputs=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
@@ -92,6 +93,7 @@ impl PyLinearGaussian {
         u: Option<Array<'py>>,
         form: &str,
         converge_tol: Option<f64>,
+        outputs: Option<Vec<String>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let form = FilterOptions {
             form: parse_form(form)?,
@@ -99,10 +101,13 @@ impl PyLinearGaussian {
         };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
-        let mut out = OutArrays::for_filter(py, y.steps(), self.inner.n_states(), self.inner.n_obs());
+        let (n, m) = (self.inner.n_states(), self.inner.n_obs());
+        let mut out = OutArrays::for_filter(py, y.steps(), n, m, outputs.as_deref())?;
+        let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
-        let loglik = py.detach(|| filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&mut slices)))?;
+        let loglik =
+            py.detach(|| filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&names, &mut slices)))?;
         drop(slices);
         let dict = out.into_dict(py)?;
         dict.set_item("loglik", loglik)?;
@@ -150,7 +155,7 @@ impl PyLinearGaussian {
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
-        let mut out = OutArrays::for_filter(py, steps, n, m).with(
+        let mut out = OutArrays::for_filter(py, steps, n, m, None)?.with(
             py,
             &[
                 ("x_smooth", &[steps, n]),
@@ -158,10 +163,11 @@ impl PyLinearGaussian {
                 ("P_lag1", &[steps, n, n]),
             ],
         );
+        let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
         let loglik = py.detach(|| -> crate::Result<f64> {
-            let loglik = filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&mut slices))?;
+            let loglik = filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&names, &mut slices))?;
             let [x_pred, p_pred, x_filt, p_filt, _, _, gain, _, _, _, _, x_smooth, p_smooth, p_lag1] = &mut slices[..]
             else {
                 unreachable!("fourteen output arrays")

@@ -113,13 +113,13 @@ pub fn smooth_fixed_lag_into(
     for t in 0..steps {
         let sys = model.at(t);
         let u_t = u.map(|u| u.row(t));
-        ws.update(&sys, y.row(t), u_t, form, t)?;
+        ws.update(ws.dims(), &sys, y.row(t), u_t, form, t)?;
         window.begin_step(&ws);
         window.update(&ws);
         if window.len == window.slots.len() {
             emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
         }
-        ws.predict(&sys, u_t);
+        ws.predict(ws.dims(), &sys, u_t);
         window.end_step(sys.f, sys.h, &ws);
     }
     // The last states have less than `lag` steps of data after them: x̂(T−1−i | T−1).
@@ -172,7 +172,7 @@ pub fn smooth_fixed_point(
     for t in 0..steps {
         let sys = model.at(t);
         let u_t = u.map(|u| u.row(t));
-        ws.update(&sys, y.row(t), u_t, form, t)?;
+        ws.update(ws.dims(), &sys, y.row(t), u_t, form, t)?;
         if t >= t_point {
             if t == t_point {
                 past.start(&ws);
@@ -182,7 +182,7 @@ pub fn smooth_fixed_point(
             res.x[j * n..(j + 1) * n].copy_from_slice(&past.x);
             res.p[j * n * n..(j + 1) * n * n].copy_from_slice(&past.p);
         }
-        ws.predict(&sys, u_t);
+        ws.predict(ws.dims(), &sys, u_t);
         if t >= t_point {
             scratch.set_closed_loop(sys.f, sys.h, &ws);
             past.advance(&mut scratch);
