@@ -38,31 +38,19 @@ pub enum Error {
 impl Error {
     /// An [`Error::InvalidArgument`] without a time step.
     pub fn arg(arg: &'static str, problem: impl Into<String>) -> Self {
-        Error::InvalidArgument {
-            arg,
-            step: None,
-            problem: problem.into(),
-        }
+        Error::InvalidArgument { arg, step: None, problem: problem.into() }
     }
 
     /// An [`Error::InvalidArgument`] at time step `step`.
     pub fn arg_at(arg: &'static str, step: usize, problem: impl Into<String>) -> Self {
-        Error::InvalidArgument {
-            arg,
-            step: Some(step),
-            problem: problem.into(),
-        }
+        Error::InvalidArgument { arg, step: Some(step), problem: problem.into() }
     }
 
     /// The same error attached to time step `step` (used where per-step checks run on one
     /// matrix of a stack).
     pub(crate) fn at_step(self, t: Option<usize>) -> Self {
         match self {
-            Error::InvalidArgument {
-                arg,
-                step: None,
-                problem,
-            } => Error::InvalidArgument { arg, step: t, problem },
+            Error::InvalidArgument { arg, step: None, problem } => Error::InvalidArgument { arg, step: t, problem },
             other => other,
         }
     }
@@ -71,25 +59,16 @@ impl Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::InvalidArgument {
-                arg,
-                step: None,
-                problem,
-            } => write!(f, "{arg}: {problem}"),
-            Error::InvalidArgument {
-                arg,
-                step: Some(t),
-                problem,
-            } => {
+            Error::InvalidArgument { arg, step: None, problem } => write!(f, "{arg}: {problem}"),
+            Error::InvalidArgument { arg, step: Some(t), problem } => {
                 write!(f, "{arg} at step {t}: {problem}")
             }
             Error::NoStabilizingSolution { problem } => {
                 write!(f, "no stabilizing solution of the Riccati equation: {problem}")
             }
-            Error::InnovationCovariance { step, problem } => write!(
-                f,
-                "innovation covariance S = H P H' + R at step {step} cannot be factorized: {problem}"
-            ),
+            Error::InnovationCovariance { step, problem } => {
+                write!(f, "innovation covariance S = H P H' + R at step {step} cannot be factorized: {problem}")
+            }
         }
     }
 }

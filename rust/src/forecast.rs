@@ -39,24 +39,8 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
         ));
     }
     check_prior(n, x, p).map_err(|e| match e {
-        Error::InvalidArgument {
-            arg: "x0",
-            step,
-            problem,
-        } => Error::InvalidArgument {
-            arg: "x",
-            step,
-            problem,
-        },
-        Error::InvalidArgument {
-            arg: "P0",
-            step,
-            problem,
-        } => Error::InvalidArgument {
-            arg: "P",
-            step,
-            problem,
-        },
+        Error::InvalidArgument { arg: "x0", step, problem } => Error::InvalidArgument { arg: "x", step, problem },
+        Error::InvalidArgument { arg: "P0", step, problem } => Error::InvalidArgument { arg: "P", step, problem },
         other => other,
     })?;
     crate::filter::check_input_series(model, u, steps)?;

@@ -34,10 +34,7 @@ pub(crate) fn from_mat(m: &Mat<f64>) -> Vec<f64> {
 
 fn check_square(arg: &'static str, a: &[f64], n: usize) -> Result<()> {
     if a.len() != n * n {
-        return Err(Error::arg(
-            arg,
-            format!("expected an ({n}, {n}) matrix, got {} entries", a.len()),
-        ));
+        return Err(Error::arg(arg, format!("expected an ({n}, {n}) matrix, got {} entries", a.len())));
     }
     if let Some(v) = a.iter().find(|v| !v.is_finite()) {
         return Err(Error::arg(arg, format!("contains a non-finite value ({v})")));
@@ -72,11 +69,7 @@ pub fn stationary_covariance(f: &[f64], q: &[f64], n: usize) -> Result<Vec<f64>>
 }
 
 pub(crate) fn spectral_radius(schur: &RealSchur) -> f64 {
-    schur
-        .eigenvalues()
-        .iter()
-        .map(|(re, im)| re.hypot(*im))
-        .fold(0.0, f64::max)
+    schur.eigenvalues().iter().map(|(re, im)| re.hypot(*im)).fold(0.0, f64::max)
 }
 
 fn solve(a: &[f64], q: &[f64], n: usize, kind: Kind) -> Result<Vec<f64>> {
@@ -155,10 +148,7 @@ fn no_unique_solution(schur: &RealSchur, kind: Kind) -> Error {
         Kind::Continuous => "two eigenvalues of a have λ_i + λ_j = 0",
     };
     let rho = spectral_radius(schur);
-    Error::arg(
-        "a",
-        format!("the Lyapunov equation has no unique solution: {what} (spectral radius {rho:.6})"),
-    )
+    Error::arg("a", format!("the Lyapunov equation has no unique solution: {what} (spectral radius {rho:.6})"))
 }
 
 /// Solves the ≤ 2×2 block equation for Y (p × q): discrete Y − A Y B' = rhs, continuous

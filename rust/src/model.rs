@@ -52,17 +52,9 @@ impl StepMatrix {
             return Err(Error::arg(arg, "a per-step stack needs at least one step (T = 0)"));
         }
         if data.len() != steps.unwrap_or(1) * rows * cols {
-            return Err(Error::arg(
-                arg,
-                format!("data length {} does not match shape {shape:?}", data.len()),
-            ));
+            return Err(Error::arg(arg, format!("data length {} does not match shape {shape:?}", data.len())));
         }
-        Ok(StepMatrix {
-            data,
-            rows,
-            cols,
-            steps,
-        })
+        Ok(StepMatrix { data, rows, cols, steps })
     }
 
     /// The matrix used at step `t` (the constant one, or the `t`-th of the stack).
@@ -104,10 +96,7 @@ impl StepMatrix {
         if self.rows != rows || self.cols != cols {
             return Err(Error::arg(
                 arg,
-                format!(
-                    "expected shape ({rows}, {cols}) {what}, got ({}, {})",
-                    self.rows, self.cols
-                ),
+                format!("expected shape ({rows}, {cols}) {what}, got ({}, {})", self.rows, self.cols),
             ));
         }
         Ok(())
@@ -127,10 +116,7 @@ impl StepMatrix {
     fn check_covariance(&mut self, arg: &'static str) -> Result<()> {
         let n = self.rows;
         if n != self.cols {
-            return Err(Error::arg(
-                arg,
-                format!("a covariance must be square, got shape ({n}, {})", self.cols),
-            ));
+            return Err(Error::arg(arg, format!("a covariance must be square, got shape ({n}, {})", self.cols)));
         }
         for t in self.step_indices() {
             let size = n * n;
@@ -172,16 +158,11 @@ pub(crate) fn check_psd(a: &[f64], n: usize) -> std::result::Result<(), String> 
         return Ok(());
     }
     if n == 1 {
-        return if a[0] >= 0.0 {
-            Ok(())
-        } else {
-            Err(format!("not positive semidefinite (value {})", a[0]))
-        };
+        return if a[0] >= 0.0 { Ok(()) } else { Err(format!("not positive semidefinite (value {})", a[0])) };
     }
     let mat = faer::Mat::<f64>::from_fn(n, n, |i, j| a[i * n + j]);
-    let eig = mat
-        .self_adjoint_eigenvalues(faer::Side::Lower)
-        .map_err(|_| "eigenvalues could not be computed".to_string())?;
+    let eig =
+        mat.self_adjoint_eigenvalues(faer::Side::Lower).map_err(|_| "eigenvalues could not be computed".to_string())?;
     let (lo, hi) = (eig[0], eig[n - 1]);
     let scale = lo.abs().max(hi.abs());
     if lo < -COV_RTOL * scale {
@@ -213,15 +194,7 @@ pub struct Matrices {
 impl Matrices {
     /// `F, H, Q, R` with no inputs and uncorrelated noises.
     pub fn new(f: StepMatrix, h: StepMatrix, q: StepMatrix, r: StepMatrix) -> Self {
-        Matrices {
-            f,
-            h,
-            q,
-            r,
-            b: None,
-            d: None,
-            n: None,
-        }
+        Matrices { f, h, q, r, b: None, d: None, n: None }
     }
 }
 
@@ -257,10 +230,7 @@ impl LinearGaussian {
         let m = mats.h.rows;
         mats.h.expect_shape("H", m, n, "(H must have n = F's size columns)")?;
         if n == 0 || m == 0 {
-            return Err(Error::arg(
-                "F",
-                format!("the state (n = {n}) and output (m = {m}) must not be empty"),
-            ));
+            return Err(Error::arg("F", format!("the state (n = {n}) and output (m = {m}) must not be empty")));
         }
         mats.q.expect_shape("Q", n, n, "(n × n, n = F's size)")?;
         mats.r.expect_shape("R", m, m, "(m × m, m = H's rows)")?;
@@ -270,10 +240,7 @@ impl LinearGaussian {
             (None, None) => 0,
         };
         if k == 0 && (mats.b.is_some() || mats.d.is_some()) {
-            return Err(Error::arg(
-                if mats.b.is_some() { "B" } else { "D" },
-                "has no columns (k = 0 inputs)",
-            ));
+            return Err(Error::arg(if mats.b.is_some() { "B" } else { "D" }, "has no columns (k = 0 inputs)"));
         }
         if let Some(b) = &mats.b {
             b.expect_shape("B", n, k, "(n × k)")?;
@@ -306,13 +273,7 @@ impl LinearGaussian {
         if let Some(nn) = &mats.n {
             check_joint_psd(&mats.q, &mats.r, nn, steps.map(|s| s.1))?;
         }
-        Ok(LinearGaussian {
-            mats,
-            n_states: n,
-            n_obs: m,
-            n_inputs: k,
-            steps: steps.map(|s| s.1),
-        })
+        Ok(LinearGaussian { mats, n_states: n, n_obs: m, n_inputs: k, steps: steps.map(|s| s.1) })
     }
 
     fn named(mats: &Matrices) -> Vec<(&'static str, &StepMatrix)> {

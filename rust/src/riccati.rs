@@ -89,22 +89,14 @@ fn problem(
 ) -> Result<Problem> {
     let check = |arg: &'static str, v: &[f64], rows: usize, cols: usize| -> Result<Mat<f64>> {
         if v.len() != rows * cols {
-            return Err(Error::arg(
-                arg,
-                format!("expected shape ({rows}, {cols}), got {} entries", v.len()),
-            ));
+            return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
         }
         if let Some(x) = v.iter().find(|x| !x.is_finite()) {
             return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
         }
         Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
     };
-    let (a, b, q, r) = (
-        check("a", a, n, n)?,
-        check("b", b, n, m)?,
-        check("q", q, n, n)?,
-        check("r", r, m, m)?,
-    );
+    let (a, b, q, r) = (check("a", a, n, n)?, check("b", b, n, m)?, check("q", q, n, n)?, check("r", r, m, m)?);
     for (arg, mat, size) in [("q", &q, n), ("r", &r, m)] {
         crate::model::check_symmetric(&from_mat(mat), size).map_err(|p| Error::arg(arg, p))?;
     }
@@ -113,26 +105,12 @@ fn problem(
         None => Mat::zeros(n, m),
     };
     let Some(e) = e else {
-        return Ok(Problem {
-            a,
-            b,
-            q: sym(&q),
-            r: sym(&r),
-            s,
-            e: None,
-        });
+        return Ok(Problem { a, b, q: sym(&q), r: sym(&r), s, e: None });
     };
     let e = check("e", e, n, n)?;
     let e_inv = invert(&e).ok_or_else(|| Error::arg("e", "must be nonsingular"))?;
     let e_inv_t = e_inv.transpose().to_owned();
-    Ok(Problem {
-        a: &a * &e_inv,
-        b,
-        q: sym(&(&e_inv_t * &q * &e_inv)),
-        r: sym(&r),
-        s: &e_inv_t * &s,
-        e: Some(e),
-    })
+    Ok(Problem { a: &a * &e_inv, b, q: sym(&(&e_inv_t * &q * &e_inv)), r: sym(&r), s: &e_inv_t * &s, e: Some(e) })
 }
 
 fn sym(a: &Mat<f64>) -> Mat<f64> {
@@ -166,9 +144,7 @@ fn converged(change: f64, previous: f64, size: f64) -> bool {
 }
 
 fn no_solution(problem: impl Into<String>) -> Error {
-    Error::NoStabilizingSolution {
-        problem: problem.into(),
-    }
+    Error::NoStabilizingSolution { problem: problem.into() }
 }
 
 /// Solves the DARE (SciPy's `solve_discrete_are(a, b, q, r, e, s)`); `a` is `n × n`, `b`
@@ -211,10 +187,7 @@ pub fn solve_discrete_are(
         // restore them (ALGORITHMS.md §6.4f).
         (DareMethod::Eigen, Some(r_inv)) => newton(&p, eigen(&p, r_inv)?, 2)?,
         (DareMethod::Eigen, None) => {
-            return Err(Error::arg(
-                "r",
-                "must be invertible for method \"eigen\" (use \"doubling\" or \"iteration\")",
-            ))
+            return Err(Error::arg("r", "must be invertible for method \"eigen\" (use \"doubling\" or \"iteration\")"))
         }
     };
     finish_dare(&p, sym(&x), iterations)
@@ -264,9 +237,7 @@ fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
         }
         previous = change;
     }
-    Err(no_solution(
-        "the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)",
-    ))
+    Err(no_solution("the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)"))
 }
 
 /// Riccati iteration from X = I (ALGORITHMS.md §6.4a).
@@ -288,9 +259,7 @@ fn iteration(p: &Problem) -> Result<(Mat<f64>, usize)> {
         }
         previous = change;
     }
-    Err(no_solution(
-        "the Riccati iteration did not converge (eigenvalues on or near the unit circle?)",
-    ))
+    Err(no_solution("the Riccati iteration did not converge (eigenvalues on or near the unit circle?)"))
 }
 
 /// Newton–Hewer from X0 (whose gain must be stabilizing): X_{k+1} solves
@@ -325,12 +294,7 @@ fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
     let g = &p.b * r_inv * p.b.transpose();
     let q0 = &p.q - &p.s * &rs;
     let a_inv_t = invert(&a0)
-        .ok_or_else(|| {
-            Error::arg(
-                "a",
-                "a − b r⁻¹ s' must be invertible for method \"eigen\" (use \"doubling\")",
-            )
-        })?
+        .ok_or_else(|| Error::arg("a", "a − b r⁻¹ s' must be invertible for method \"eigen\" (use \"doubling\")"))?
         .transpose()
         .to_owned();
     let mut z = Mat::<f64>::zeros(2 * n, 2 * n);
@@ -350,9 +314,7 @@ fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
 
 /// X = Re(U2 U1⁻¹) from the eigenvectors of `z` (2n × 2n) whose eigenvalues pass `stable`.
 fn stable_subspace(z: &Mat<f64>, n: usize, stable: impl Fn(c64) -> bool, region: &str) -> Result<Mat<f64>> {
-    let evd = z
-        .eigen()
-        .map_err(|_| no_solution("the eigendecomposition did not converge"))?;
+    let evd = z.eigen().map_err(|_| no_solution("the eigendecomposition did not converge"))?;
     let (u, s) = (evd.U(), evd.S().column_vector());
     let chosen: Vec<usize> = (0..2 * n).filter(|&i| stable(s[i])).collect();
     if chosen.len() != n {
@@ -374,9 +336,7 @@ fn stable_subspace(z: &Mat<f64>, n: usize, stable: impl Fn(c64) -> bool, region:
 }
 
 fn eigenvalues(a: &Mat<f64>) -> Result<Vec<(f64, f64)>> {
-    let ev = a
-        .eigenvalues()
-        .map_err(|_| no_solution("closed-loop eigenvalues did not converge"))?;
+    let ev = a.eigenvalues().map_err(|_| no_solution("closed-loop eigenvalues did not converge"))?;
     Ok(ev.iter().map(|l| (l.re, l.im)).collect())
 }
 
@@ -390,10 +350,7 @@ fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize) -> Result<RiccatiSol
     let k = dare_gain(p, &x).ok_or_else(|| no_solution("b'Xb + r is singular at the solution"))?;
     let acl = &p.a - &p.b * &k;
     let closed_loop_eigenvalues = eigenvalues(&acl)?;
-    let rho = closed_loop_eigenvalues
-        .iter()
-        .map(|(re, im)| re.hypot(*im))
-        .fold(0.0, f64::max);
+    let rho = closed_loop_eigenvalues.iter().map(|(re, im)| re.hypot(*im)).fold(0.0, f64::max);
     let residual = (riccati_step(p, &x, &k) - &x).norm_max() / x.norm_max().max(1.0);
     if rho.is_nan() || rho >= 1.0 {
         return Err(no_solution(format!(
@@ -402,13 +359,7 @@ fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize) -> Result<RiccatiSol
         )));
     }
     let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution {
-        x: from_mat(&x),
-        gain,
-        closed_loop_eigenvalues,
-        residual,
-        iterations,
-    })
+    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations })
 }
 
 /// Solves the CARE (SciPy's `solve_continuous_are(a, b, q, r, e, s)`): the stable invariant
@@ -441,12 +392,7 @@ pub fn solve_continuous_are(
             ham[(n + i, n + j)] = -a0[(j, i)];
         }
     }
-    let mut x = sym(&stable_subspace(
-        &ham,
-        n,
-        |l| l.re < 0.0,
-        "in the open left half-plane",
-    )?);
+    let mut x = sym(&stable_subspace(&ham, n, |l| l.re < 0.0, "in the open left half-plane")?);
     let care_gain = |x: &Mat<f64>| &r_inv * (p.b.transpose() * x + p.s.transpose());
     let mut iterations = 0;
     for _ in 0..5 {
@@ -469,10 +415,7 @@ pub fn solve_continuous_are(
     let k = care_gain(&x);
     let acl = &p.a - &p.b * &k;
     let closed_loop_eigenvalues = eigenvalues(&acl)?;
-    let max_re = closed_loop_eigenvalues
-        .iter()
-        .map(|l| l.0)
-        .fold(f64::NEG_INFINITY, f64::max);
+    let max_re = closed_loop_eigenvalues.iter().map(|l| l.0).fold(f64::NEG_INFINITY, f64::max);
     if max_re.is_nan() || max_re >= 0.0 {
         return Err(no_solution(format!(
             "the solution found is not stabilizing (largest closed-loop real part {max_re:.6})"
@@ -482,11 +425,5 @@ pub fn solve_continuous_are(
     let res = p.a.transpose() * &x + &x * &p.a - k.transpose() * &p.r * &k + &p.q;
     let residual = res.norm_max() / x.norm_max().max(1.0);
     let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution {
-        x: from_mat(&x),
-        gain,
-        closed_loop_eigenvalues,
-        residual,
-        iterations,
-    })
+    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations })
 }

@@ -39,10 +39,7 @@ const THETA13: f64 = 5.371_920_351_148_152;
 /// e^A of the `n × n` row-major `a`.
 pub fn expm(a: &[f64], n: usize) -> Result<Vec<f64>> {
     if a.len() != n * n {
-        return Err(Error::arg(
-            "a",
-            format!("expected an ({n}, {n}) matrix, got {} entries", a.len()),
-        ));
+        return Err(Error::arg("a", format!("expected an ({n}, {n}) matrix, got {} entries", a.len())));
     }
     if let Some(v) = a.iter().find(|v| !v.is_finite()) {
         return Err(Error::arg("a", format!("contains a non-finite value ({v})")));
@@ -52,14 +49,8 @@ pub fn expm(a: &[f64], n: usize) -> Result<Vec<f64>> {
 
 pub(crate) fn expm_mat(a: &Mat<f64>) -> Mat<f64> {
     let n = a.nrows();
-    let norm1 = (0..n)
-        .map(|j| (0..n).map(|i| a[(i, j)].abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    let squarings = if norm1 > THETA13 {
-        (norm1 / THETA13).log2().ceil() as i32
-    } else {
-        0
-    };
+    let norm1 = (0..n).map(|j| (0..n).map(|i| a[(i, j)].abs()).sum::<f64>()).fold(0.0, f64::max);
+    let squarings = if norm1 > THETA13 { (norm1 / THETA13).log2().ceil() as i32 } else { 0 };
     let a = a * faer::Scale(0.5f64.powi(squarings));
     let id = Mat::<f64>::identity(n, n);
     let a2 = &a * &a;
@@ -109,10 +100,7 @@ pub fn discretize(a: &[f64], qc: &[f64], b: Option<&[f64]>, n: usize, k: usize, 
 
 fn checked(arg: &'static str, v: &[f64], rows: usize, cols: usize) -> Result<Mat<f64>> {
     if v.len() != rows * cols {
-        return Err(Error::arg(
-            arg,
-            format!("expected shape ({rows}, {cols}), got {} entries", v.len()),
-        ));
+        return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
     }
     if let Some(x) = v.iter().find(|x| !x.is_finite()) {
         return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
@@ -155,11 +143,7 @@ fn discretize_mat(a: &Mat<f64>, qc: &Mat<f64>, b: Option<&Mat<f64>>, dt: f64) ->
         }
         None => Vec::new(),
     };
-    Discretized {
-        f: from_mat(&f),
-        qd: qd_v,
-        bd,
-    }
+    Discretized { f: from_mat(&f), qd: qd_v, bd }
 }
 
 /// [`discretize`] for each interval of `dts`, stacked step-major: F `(T, n, n)`, Qd
@@ -178,11 +162,7 @@ pub fn discretize_steps(
     if let Some((t, dt)) = dts.iter().enumerate().find(|(_, dt)| !(**dt > 0.0 && dt.is_finite())) {
         return Err(Error::arg_at("dt", t, format!("must be positive and finite, got {dt}")));
     }
-    let mut out = Discretized {
-        f: Vec::with_capacity(dts.len() * n * n),
-        qd: Vec::new(),
-        bd: Vec::new(),
-    };
+    let mut out = Discretized { f: Vec::with_capacity(dts.len() * n * n), qd: Vec::new(), bd: Vec::new() };
     let mut last: Option<(f64, Discretized)> = None;
     for &dt in dts {
         let step = match &last {

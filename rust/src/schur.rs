@@ -201,9 +201,7 @@ mod tests {
     fn random(n: usize, seed: u64) -> Mat<f64> {
         let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         Mat::from_fn(n, n, |_, _| {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
         })
     }
@@ -215,10 +213,7 @@ mod tests {
                 let a = random(n, seed * 31 + n as u64);
                 let s = real_schur(&a).unwrap();
                 let back = &s.z * &s.t * s.z.transpose();
-                assert!(
-                    (&back - &a).norm_max() < 1e-12 * (1.0 + a.norm_max()) * n as f64,
-                    "n={n}"
-                );
+                assert!((&back - &a).norm_max() < 1e-12 * (1.0 + a.norm_max()) * n as f64, "n={n}");
                 let ztz = s.z.transpose() * &s.z;
                 assert!((&ztz - Mat::<f64>::identity(n, n)).norm_max() < 1e-13 * n as f64);
                 for (i, size) in s.blocks() {
@@ -229,12 +224,7 @@ mod tests {
                     }
                 }
                 let mut ours: Vec<f64> = s.eigenvalues().iter().map(|e| e.0 * e.0 + e.1 * e.1).collect();
-                let mut theirs: Vec<f64> = a
-                    .eigenvalues()
-                    .unwrap()
-                    .iter()
-                    .map(|e| e.re * e.re + e.im * e.im)
-                    .collect();
+                let mut theirs: Vec<f64> = a.eigenvalues().unwrap().iter().map(|e| e.re * e.re + e.im * e.im).collect();
                 ours.sort_by(f64::total_cmp);
                 theirs.sort_by(f64::total_cmp);
                 for (o, t) in ours.iter().zip(&theirs) {

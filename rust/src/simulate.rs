@@ -23,20 +23,14 @@ pub fn propagate(
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     let (n, m, k, steps) = (model.n_states(), model.n_obs(), model.n_inputs(), w.steps());
     if x_init.len() != n {
-        return Err(Error::arg(
-            "x_init",
-            format!("expected {n} entries, got {}", x_init.len()),
-        ));
+        return Err(Error::arg("x_init", format!("expected {n} entries, got {}", x_init.len())));
     }
     if v.steps() != steps {
         return Err(Error::arg("v", format!("has {} steps but w has {steps}", v.steps())));
     }
     if let Some(t) = model.steps() {
         if t != steps {
-            return Err(Error::arg(
-                "T",
-                format!("is {steps} but the model's per-step matrices have {t}"),
-            ));
+            return Err(Error::arg("T", format!("is {steps} but the model's per-step matrices have {t}")));
         }
     }
     crate::filter::check_input_series(model, u, steps)?;

@@ -41,10 +41,7 @@ fn assert_close(what: &str, got: &[f64], want: &[f64], tol: f64) {
 fn assert_rel(what: &str, got: &[f64], want: &[f64], rtol: f64) {
     assert_eq!(got.len(), want.len(), "{what}: length");
     for (i, (g, w)) in got.iter().zip(want).enumerate() {
-        assert!(
-            (g - w).abs() <= rtol * w.abs(),
-            "{what}[{i}]: got {g}, want {w} (rtol {rtol})"
-        );
+        assert!((g - w).abs() <= rtol * w.abs(), "{what}[{i}]: got {g}, want {w} (rtol {rtol})");
     }
 }
 
@@ -125,11 +122,7 @@ fn y_3x2_missing() -> Vec<f64> {
 
 /// Observations (8 × 2), all present.
 fn y_3x2_full() -> Vec<f64> {
-    y_3x2_missing()
-        .iter()
-        .enumerate()
-        .map(|(i, v)| if v.is_nan() { 0.1 * i as f64 - 0.4 } else { *v })
-        .collect()
+    y_3x2_missing().iter().enumerate().map(|(i, v)| if v.is_nan() { 0.1 * i as f64 - 0.4 } else { *v }).collect()
 }
 
 /// Inputs (8 × 2).
@@ -149,15 +142,7 @@ fn soderstrom_b1_stationary_scalar_filter() {
     let y = [0.3, -0.1, 0.7, 1.2, -0.5, 0.0, 0.25, -0.8];
     let steps = y.len();
     for form in [UpdateForm::Joseph, UpdateForm::Standard] {
-        let res = filter(
-            &model,
-            Series::new("y", &y, steps, 1).unwrap(),
-            None,
-            &[0.0],
-            &[1.0],
-            form,
-        )
-        .unwrap();
+        let res = filter(&model, Series::new("y", &y, steps, 1).unwrap(), None, &[0.0], &[1.0], form).unwrap();
         assert_close("P_pred", &res.p_pred, &vec![1.0; steps], 1e-12);
         assert_close("K_pred", &res.gain_pred, &vec![0.4; steps], 1e-12);
         assert_close("K", &res.gain, &vec![0.5; steps], 1e-12);
@@ -176,12 +161,8 @@ fn soderstrom_a3_transient_scalar_filter() {
     // Söderström (2002), Example 6.2, case A3: F = 0.9, H = 1, Q = 0, R = 0.04, P0 = 1.
     let model = scalar_model(0.9, 1.0, 0.0, 0.04);
     let y = [0.1, -0.3, 0.2, 0.05, 0.4, -0.1, 0.0, 0.3];
-    let p_pred = [
-        1.0, 0.0311538, 0.0141859, 0.00848236, 0.00566863, 0.00402166, 0.00295994, 0.00223236,
-    ];
-    let k_pred = [
-        0.865385, 0.394054, 0.235621, 0.157462, 0.111713, 0.0822207, 0.0620101, 0.0475732,
-    ];
+    let p_pred = [1.0, 0.0311538, 0.0141859, 0.00848236, 0.00566863, 0.00402166, 0.00295994, 0.00223236];
+    let k_pred = [0.865385, 0.394054, 0.235621, 0.157462, 0.111713, 0.0822207, 0.0620101, 0.0475732];
     for form in [UpdateForm::Joseph, UpdateForm::Standard] {
         let res = filter(&model, Series::new("y", &y, 8, 1).unwrap(), None, &[0.0], &[1.0], form).unwrap();
         assert_rel("P_pred", &res.p_pred, &p_pred, 1e-5);
@@ -215,22 +196,12 @@ fn check_stream_matches_batch(form: UpdateForm, skip_missing_rows: bool) {
         let (y_t, u_t) = (&y[t * m..(t + 1) * m], &u[t * k..(t + 1) * k]);
         assert_eq!(kf.t(), t);
         assert_close(&format!("x_pred at {t}"), kf.x(), &res.x_pred[t * n..(t + 1) * n], TOL);
-        assert_close(
-            &format!("P_pred at {t}"),
-            kf.p(),
-            &res.p_pred[t * n * n..(t + 1) * n * n],
-            TOL,
-        );
+        assert_close(&format!("P_pred at {t}"), kf.p(), &res.p_pred[t * n * n..(t + 1) * n * n], TOL);
         if !(skip_missing_rows && y_t.iter().all(|v| v.is_nan())) {
             kf.update(y_t, Some(u_t)).unwrap();
         }
         assert_close(&format!("x_filt at {t}"), kf.x(), &res.x_filt[t * n..(t + 1) * n], TOL);
-        assert_close(
-            &format!("P_filt at {t}"),
-            kf.p(),
-            &res.p_filt[t * n * n..(t + 1) * n * n],
-            TOL,
-        );
+        assert_close(&format!("P_filt at {t}"), kf.p(), &res.p_filt[t * n * n..(t + 1) * n * n], TOL);
         kf.predict(Some(u_t)).unwrap();
     }
     assert_eq!(kf.t(), T3);
@@ -292,10 +263,7 @@ fn missing_components_are_reported_as_such() {
     assert!(res.gain[t * n * m..(t + 1) * n * m].iter().all(|&g| g == 0.0));
     assert!(res.gain_pred[t * n * m..(t + 1) * n * m].iter().all(|&g| g == 0.0));
     assert_eq!(res.x_filt[t * n..(t + 1) * n], res.x_pred[t * n..(t + 1) * n]);
-    assert_eq!(
-        res.p_filt[t * n * n..(t + 1) * n * n],
-        res.p_pred[t * n * n..(t + 1) * n * n]
-    );
+    assert_eq!(res.p_filt[t * n * n..(t + 1) * n * n], res.p_pred[t * n * n..(t + 1) * n * n]);
     // Step 2: component 0 missing — its innovation is NaN and its gain column zero.
     let t = 2;
     assert!(res.innov[t * m].is_nan() && res.innov[t * m + 1].is_finite());
@@ -358,11 +326,7 @@ fn reference_filter(
     let (n, m, k) = (model.n_states(), model.n_obs(), model.n_inputs());
     let mats = model.matrices();
     let (f, h, q, r) = (mats.f.at(0), mats.h.at(0), mats.q.at(0), mats.r.at(0));
-    let (b, d, nn) = (
-        mats.b.as_ref().unwrap().at(0),
-        mats.d.as_ref().unwrap().at(0),
-        mats.n.as_ref().unwrap().at(0),
-    );
+    let (b, d, nn) = (mats.b.as_ref().unwrap().at(0), mats.d.as_ref().unwrap().at(0), mats.n.as_ref().unwrap().at(0));
     let nz = 2 * n + m;
     let (mut x, mut p) = (X0_3.to_vec(), P0_3.to_vec());
     let mut outs: [Vec<f64>; 7] = Default::default();
@@ -537,15 +501,7 @@ fn loglik_of_one_scalar_step_is_the_gaussian_density() {
     // y[0] ~ N(0, H P0 H' + R) = N(0, 2) in case B1.
     let model = scalar_model(0.8, 1.0, 0.68, 1.0);
     let y = [0.7];
-    let ll = loglik(
-        &model,
-        Series::new("y", &y, 1, 1).unwrap(),
-        None,
-        &[0.0],
-        &[1.0],
-        UpdateForm::Joseph,
-    )
-    .unwrap();
+    let ll = loglik(&model, Series::new("y", &y, 1, 1).unwrap(), None, &[0.0], &[1.0], UpdateForm::Joseph).unwrap();
     let want = -0.5 * ((2.0 * std::f64::consts::PI * 2.0).ln() + 0.49 / 2.0);
     assert_close("loglik", &[ll], &[want], 1e-14);
 }

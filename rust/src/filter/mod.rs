@@ -29,10 +29,7 @@ impl<'a> Series<'a> {
     /// Wraps `data` as `steps` rows of `width` numbers; `arg` names it in errors.
     pub fn new(arg: &'static str, data: &'a [f64], steps: usize, width: usize) -> Result<Self> {
         if data.len() != steps * width {
-            return Err(Error::arg(
-                arg,
-                format!("data length {} is not {steps} × {width}", data.len()),
-            ));
+            return Err(Error::arg(arg, format!("data length {} is not {steps} × {width}", data.len())));
         }
         Ok(Series { data, steps, width })
     }
@@ -65,10 +62,7 @@ pub struct FilterOptions {
 
 impl From<UpdateForm> for FilterOptions {
     fn from(form: UpdateForm) -> Self {
-        FilterOptions {
-            form,
-            converge_tol: None,
-        }
+        FilterOptions { form, converge_tol: None }
     }
 }
 
@@ -187,12 +181,8 @@ pub fn filter_into(
     check_outputs(&out, steps, n, m)?;
     let mut ws = start(model, x0, p0);
     ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let run = Run {
-        model,
-        y,
-        u,
-        form: options.form,
-    };
+    ws.want_gain_pred = out.gain_pred.is_some();
+    let run = Run { model, y, u, form: options.form };
     let total = with_dims!(n, m, run.filter(&mut ws, &mut out))?;
     if let Some(o) = out.x_next.as_deref_mut() {
         o.copy_from_slice(&ws.x_pred);
@@ -217,17 +207,9 @@ pub fn loglik(
     check_data(model, y, u, x0, p0)?;
     let mut ws = start(model, x0, p0);
     ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let run = Run {
-        model,
-        y,
-        u,
-        form: options.form,
-    };
-    with_dims!(
-        model.n_states(),
-        model.n_obs(),
-        run.filter(&mut ws, &mut FilterOutputs::default())
-    )
+    ws.want_gain_pred = false;
+    let run = Run { model, y, u, form: options.form };
+    with_dims!(model.n_states(), model.n_obs(), run.filter(&mut ws, &mut FilterOutputs::default()))
 }
 
 pub(crate) fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
@@ -316,10 +298,9 @@ fn store(out: &mut Option<&mut [f64]>, t: usize, src: &[f64]) {
 fn check_converge_tol(model: &LinearGaussian, tol: Option<f64>) -> Result<Option<f64>> {
     match tol {
         Some(t) if t.is_nan() || t < 0.0 => Err(Error::arg("converge_tol", format!("must be ≥ 0, got {t}"))),
-        Some(_) if model.steps().is_some() => Err(Error::arg(
-            "converge_tol",
-            "needs constant model matrices (this model has per-step ones)",
-        )),
+        Some(_) if model.steps().is_some() => {
+            Err(Error::arg("converge_tol", "needs constant model matrices (this model has per-step ones)"))
+        }
         other => Ok(other),
     }
 }
@@ -341,10 +322,7 @@ fn check_outputs(out: &FilterOutputs<'_>, steps: usize, n: usize, m: usize) -> R
     for (arg, buf, want) in sizes {
         if let Some(buf) = buf {
             if buf.len() != want {
-                return Err(Error::arg(
-                    arg,
-                    format!("output buffer has {} entries, needs {want}", buf.len()),
-                ));
+                return Err(Error::arg(arg, format!("output buffer has {} entries, needs {want}", buf.len())));
             }
         }
     }
@@ -361,20 +339,14 @@ pub(crate) fn check_data(
 ) -> Result<usize> {
     let (n, m, steps) = (model.n_states(), model.n_obs(), y.steps());
     if y.width != m {
-        return Err(Error::arg(
-            "y",
-            format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width),
-        ));
+        return Err(Error::arg("y", format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width)));
     }
     if steps == 0 {
         return Err(Error::arg("y", "has no time steps (T = 0)"));
     }
     if let Some(tm) = model.steps() {
         if tm != steps {
-            return Err(Error::arg(
-                "y",
-                format!("has {steps} steps but the model's per-step matrices have {tm}"),
-            ));
+            return Err(Error::arg("y", format!("has {steps} steps but the model's per-step matrices have {tm}")));
         }
     }
     for t in 0..steps {
@@ -387,11 +359,8 @@ pub(crate) fn check_data(
 /// `y[t]` may hold NaN (missing) but not ±inf.
 fn check_observation(y: &[f64], step: Option<usize>) -> Result<()> {
     if let Some(i) = y.iter().position(|v| v.is_infinite()) {
-        return Err(Error::arg(
-            "y",
-            format!("component {i} is {} (missing values are NaN, inf is not allowed)", y[i]),
-        )
-        .at_step(step));
+        return Err(Error::arg("y", format!("component {i} is {} (missing values are NaN, inf is not allowed)", y[i]))
+            .at_step(step));
     }
     Ok(())
 }
@@ -426,10 +395,7 @@ fn check_input_width(model: &LinearGaussian, width: usize) -> Result<()> {
         return Err(Error::arg("u", "given, but the model has neither B nor D"));
     }
     if width != k {
-        return Err(Error::arg(
-            "u",
-            format!("expected {k} inputs per step (B/D have k = {k} columns), got {width}"),
-        ));
+        return Err(Error::arg("u", format!("expected {k} inputs per step (B/D have k = {k} columns), got {width}")));
     }
     Ok(())
 }
@@ -444,19 +410,13 @@ fn check_input_row(u: &[f64], step: Option<usize>) -> Result<()> {
 /// x0 has n finite entries; P0 is a finite symmetric PSD n × n matrix.
 pub(crate) fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
     if x0.len() != n {
-        return Err(Error::arg(
-            "x0",
-            format!("expected {n} entries (the state size n), got {}", x0.len()),
-        ));
+        return Err(Error::arg("x0", format!("expected {n} entries (the state size n), got {}", x0.len())));
     }
     if let Some(v) = x0.iter().find(|v| !v.is_finite()) {
         return Err(Error::arg("x0", format!("contains a non-finite value ({v})")));
     }
     if p0.len() != n * n {
-        return Err(Error::arg(
-            "P0",
-            format!("expected an ({n}, {n}) matrix, got {} entries", p0.len()),
-        ));
+        return Err(Error::arg("P0", format!("expected an ({n}, {n}) matrix, got {} entries", p0.len())));
     }
     if let Some(v) = p0.iter().find(|v| !v.is_finite()) {
         return Err(Error::arg("P0", format!("contains a non-finite value ({v})")));
@@ -486,14 +446,7 @@ impl KalmanFilter {
     pub fn new(model: Arc<LinearGaussian>, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
         check_prior(model.n_states(), x0, p0)?;
         let ws = start(&model, x0, p0);
-        Ok(KalmanFilter {
-            model,
-            ws,
-            form,
-            t: 0,
-            updated: false,
-            loglik: 0.0,
-        })
+        Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: 0.0 })
     }
 
     /// Measurement update with `y` (length m, NaN = missing); `u` is needed when the model has D.
@@ -501,7 +454,7 @@ impl KalmanFilter {
         let m = self.model.n_obs();
         if y.len() != m {
             return Err(
-                Error::arg("y", format!("expected {m} values (m = {m}), got {}", y.len())).at_step(Some(self.t)),
+                Error::arg("y", format!("expected {m} values (m = {m}), got {}", y.len())).at_step(Some(self.t))
             );
         }
         check_observation(y, Some(self.t))?;
@@ -544,10 +497,7 @@ impl KalmanFilter {
             if self.t >= tm {
                 return Err(Error::arg(
                     "model",
-                    format!(
-                        "its per-step matrices cover {tm} steps; step {} is past the end",
-                        self.t
-                    ),
+                    format!("its per-step matrices cover {tm} steps; step {} is past the end", self.t),
                 ));
             }
         }
@@ -558,10 +508,7 @@ impl KalmanFilter {
             }
             None if required => Err(Error::arg(
                 "u",
-                format!(
-                    "the model has {needs}, so u with {} values is required",
-                    self.model.n_inputs()
-                ),
+                format!("the model has {needs}, so u with {} values is required", self.model.n_inputs()),
             )
             .at_step(Some(self.t))),
             None => Ok(()),

@@ -33,6 +33,18 @@ pub enum UpdateForm {
 
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
 
+/// log det S = 2 Σ ln L_ii, with one logarithm of the product when it is a normal number
+/// (the common case; `ln` dominates a small step otherwise).
+#[inline(always)]
+fn log_det_from_cholesky(chol: &[f64], mo: usize) -> f64 {
+    let prod: f64 = (0..mo).map(|i| chol[i * mo + i]).product();
+    if prod.is_normal() {
+        2.0 * prod.ln()
+    } else {
+        (0..mo).map(|i| 2.0 * chol[i * mo + i].ln()).sum()
+    }
+}
+
 /// The state and output sizes (n, m) of a step. [`Fixed`] makes them compile-time constants so
 /// that the small dense loops are unrolled for the common sizes (chosen once per call by the
 /// drivers); [`Dyn`] serves every other size. The arithmetic is identical.
@@ -98,6 +110,9 @@ pub(crate) struct Workspace {
     pub converge_tol: Option<f64>,
     /// Whether the covariances and gains are frozen (then a step costs O(n² + nm + m²)).
     pub frozen: bool,
+    /// Whether to compute the predictor gain when the model has no N (it is then only an
+    /// output; with N it enters the time update anyway).
+    pub want_gain_pred: bool,
     /// log det S of the last full update (used while frozen).
     log_det: f64,
     /// Components observed at this step, and how many (0 = no update).
@@ -142,6 +157,7 @@ impl Workspace {
             loglik_t: 0.0,
             converge_tol: None,
             frozen: false,
+            want_gain_pred: true,
             log_det: 0.0,
             obs: vec![0; m],
             m_obs: 0,
@@ -238,7 +254,7 @@ impl Workspace {
             ),
         })?;
         let chol = &self.chol[..mo * mo];
-        let log_det: f64 = (0..mo).map(|i| 2.0 * chol[i * mo + i].ln()).sum();
+        let log_det = log_det_from_cholesky(chol, mo);
         self.log_det = log_det;
         // w = L⁻¹ e gives e' S⁻¹ e = ‖w‖²; then L'⁻¹ w = S⁻¹ e.
         let s_inv_e = &mut self.s_inv_e[..mo];
@@ -318,6 +334,17 @@ impl Workspace {
     #[inline(always)]
     fn gather_observed<D: Dims>(&mut self, d: D, sys: &StepView<'_>) {
         let (n, m, mo) = (d.n(), d.m(), self.m_obs);
+        if mo == m {
+            self.e_o[..m].copy_from_slice(&self.innov[..m]);
+            self.h_o[..m * n].copy_from_slice(&sys.h[..m * n]);
+            self.chol[..m * m].copy_from_slice(&self.s_full[..m * m]);
+            self.r_o[..m * m].copy_from_slice(&sys.r[..m * m]);
+            self.pht[..n * m].copy_from_slice(&self.pht_full[..n * m]);
+            if let Some(nn) = sys.n {
+                self.n_o[..n * m].copy_from_slice(&nn[..n * m]);
+            }
+            return;
+        }
         let obs = &self.obs[..mo];
         for (a, &i) in obs.iter().enumerate() {
             self.e_o[a] = self.innov[i];
@@ -371,20 +398,20 @@ impl Workspace {
         for (p, q) in self.p_pred.iter_mut().zip(sys.q) {
             *p += q;
         }
-        self.gain_pred.fill(0.0);
-        if mo == m {
+        if !self.want_gain_pred && sys.n.is_none() {
+            // (gain_pred keeps its zeros)
+        } else if mo == m {
+            self.gain_pred.fill(0.0);
             self.predictor_gain(d, m, sys);
-        } else if mo > 0 {
-            self.predictor_gain(d, mo, sys);
+        } else {
+            self.gain_pred.fill(0.0);
+            if mo > 0 {
+                self.predictor_gain(d, mo, sys);
+            }
         }
         symmetrize(&mut self.p_pred, n);
         if let (Some(tol), true) = (self.converge_tol, mo == m) {
-            let change = self
-                .p_pred
-                .iter()
-                .zip(&self.p_prev)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let change = self.p_pred.iter().zip(&self.p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             let size = self.p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
             self.frozen = change <= tol * size;
         }

@@ -17,12 +17,7 @@ use pyo3::types::PyDict;
 use crate::error::Error;
 use crate::filter::{FilterOutputs, Series, UpdateForm};
 
-create_exception!(
-    kfast,
-    KfastError,
-    PyValueError,
-    "Invalid input to kfast (a ValueError)."
-);
+create_exception!(kfast, KfastError, PyValueError, "Invalid input to kfast (a ValueError).");
 create_exception!(
     kfast,
     NoStabilizingSolutionError,
@@ -58,13 +53,9 @@ fn as_float64<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> Py
 /// The contiguous data of a float64 array of the given ndim (`arg` names it in errors).
 fn data<'a>(arg: &str, arr: &'a PyReadonlyArrayDyn<'_, f64>, ndim: usize) -> PyResult<&'a [f64]> {
     if arr.ndim() != ndim {
-        return Err(KfastError::new_err(format!(
-            "{arg}: expected a {ndim}-D array, got shape {:?}",
-            arr.shape()
-        )));
+        return Err(KfastError::new_err(format!("{arg}: expected a {ndim}-D array, got shape {:?}", arr.shape())));
     }
-    arr.as_slice()
-        .map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
+    arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
 }
 
 /// The prior `x0` (1-D) and `P0` (2-D, n × n) as float64 slices.
@@ -93,9 +84,7 @@ fn parse_form(form: &str) -> PyResult<UpdateForm> {
     match form {
         "joseph" => Ok(UpdateForm::Joseph),
         "standard" => Ok(UpdateForm::Standard),
-        other => Err(KfastError::new_err(format!(
-            "form: expected \"joseph\" or \"standard\", got {other:?}"
-        ))),
+        other => Err(KfastError::new_err(format!("form: expected \"joseph\" or \"standard\", got {other:?}"))),
     }
 }
 
@@ -121,16 +110,9 @@ fn vector<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResu
         }
     }
     let arr = as_float64(py, name, value)?;
-    let arr = if arr.ndim() == 0 {
-        arr.reshape(IxDyn(&[1]))?.cast_into::<PyArrayDyn<f64>>()?
-    } else {
-        arr
-    };
+    let arr = if arr.ndim() == 0 { arr.reshape(IxDyn(&[1]))?.cast_into::<PyArrayDyn<f64>>()? } else { arr };
     if arr.ndim() != 1 {
-        return Err(KfastError::new_err(format!(
-            "{name}: expected a 1-D array, got shape {:?}",
-            arr.shape()
-        )));
+        return Err(KfastError::new_err(format!("{name}: expected a 1-D array, got shape {:?}", arr.shape())));
     }
     Ok(arr.readonly())
 }
@@ -155,10 +137,7 @@ impl<'py> OutArrays<'py> {
     fn new(py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
         OutArrays {
             names: specs.iter().map(|s| s.0).collect(),
-            arrays: specs
-                .iter()
-                .map(|s| PyArrayDyn::<f64>::zeros(py, IxDyn(s.1), false))
-                .collect(),
+            arrays: specs.iter().map(|s| PyArrayDyn::<f64>::zeros(py, IxDyn(s.1), false)).collect(),
         }
     }
 
@@ -177,15 +156,10 @@ impl<'py> OutArrays<'py> {
             }
         };
         if let Some(bad) = wanted.and_then(|w| w.iter().find(|name| !FILTER_FIELDS.contains(&name.as_str()))) {
-            return Err(KfastError::new_err(format!(
-                "outputs: unknown field {bad:?}; choose from {FILTER_FIELDS:?}"
-            )));
+            return Err(KfastError::new_err(format!("outputs: unknown field {bad:?}; choose from {FILTER_FIELDS:?}")));
         }
-        let names: Vec<&'static str> = FILTER_FIELDS
-            .iter()
-            .copied()
-            .filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f)))
-            .collect();
+        let names: Vec<&'static str> =
+            FILTER_FIELDS.iter().copied().filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f))).collect();
         let shapes: Vec<Vec<usize>> = names.iter().map(|f| shape(f)).collect();
         let specs: Vec<(&'static str, &[usize])> = names.iter().zip(&shapes).map(|(f, s)| (*f, s.as_slice())).collect();
         Ok(Self::new(py, &specs))
@@ -220,9 +194,8 @@ impl<'py> OutArrays<'py> {
 }
 
 /// The fields of a FilterResult, in the order of [`FilterOutputs`].
-const FILTER_FIELDS: [&str; 11] = [
-    "x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next",
-];
+const FILTER_FIELDS: [&str; 11] =
+    ["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"];
 
 /// The filter's arrays among `names`/`slices` as [`FilterOutputs`] (absent ones are `None`).
 fn filter_outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> FilterOutputs<'a> {
@@ -252,10 +225,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("KfastError", py.get_type::<KfastError>())?;
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
-    m.add(
-        "NoStabilizingSolutionError",
-        py.get_type::<NoStabilizingSolutionError>(),
-    )?;
+    m.add("NoStabilizingSolutionError", py.get_type::<NoStabilizingSolutionError>())?;
     m.add_class::<model::PyLinearGaussian>()?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;

@@ -12,9 +12,7 @@ use crate::model::{self, Matrices, StepMatrix};
 use crate::smoother::{self, FilteredView, SmootherOutputs};
 
 fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
-    let values = arr
-        .as_slice()
-        .map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
+    let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
     Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
 }
 
@@ -47,16 +45,9 @@ impl PyLinearGaussian {
             b: opt("B", &B)?,
             d: opt("D", &D)?,
             n: opt("N", &N)?,
-            ..Matrices::new(
-                step_matrix("F", &F)?,
-                step_matrix("H", &H)?,
-                step_matrix("Q", &Q)?,
-                step_matrix("R", &R)?,
-            )
+            ..Matrices::new(step_matrix("F", &F)?, step_matrix("H", &H)?, step_matrix("Q", &Q)?, step_matrix("R", &R)?)
         };
-        Ok(PyLinearGaussian {
-            inner: Arc::new(model::LinearGaussian::new(mats)?),
-        })
+        Ok(PyLinearGaussian { inner: Arc::new(model::LinearGaussian::new(mats)?) })
     }
 
     #[getter]
@@ -95,10 +86,7 @@ impl PyLinearGaussian {
         converge_tol: Option<f64>,
         outputs: Option<Vec<String>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let form = FilterOptions {
-            form: parse_form(form)?,
-            converge_tol,
-        };
+        let form = FilterOptions { form: parse_form(form)?, converge_tol };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m) = (self.inner.n_states(), self.inner.n_obs());
@@ -128,10 +116,7 @@ impl PyLinearGaussian {
         form: &str,
         converge_tol: Option<f64>,
     ) -> PyResult<f64> {
-        let form = FilterOptions {
-            form: parse_form(form)?,
-            converge_tol,
-        };
+        let form = FilterOptions { form: parse_form(form)?, converge_tol };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let model = &*self.inner;
@@ -155,14 +140,8 @@ impl PyLinearGaussian {
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
-        let mut out = OutArrays::for_filter(py, steps, n, m, None)?.with(
-            py,
-            &[
-                ("x_smooth", &[steps, n]),
-                ("P_smooth", &[steps, n, n]),
-                ("P_lag1", &[steps, n, n]),
-            ],
-        );
+        let mut out = OutArrays::for_filter(py, steps, n, m, None)?
+            .with(py, &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n]), ("P_lag1", &[steps, n, n])]);
         let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
@@ -172,23 +151,8 @@ impl PyLinearGaussian {
             else {
                 unreachable!("fourteen output arrays")
             };
-            let view = FilteredView {
-                x_pred,
-                p_pred,
-                x_filt,
-                p_filt,
-                gain,
-            };
-            smoother::rts_into(
-                model,
-                steps,
-                view,
-                SmootherOutputs {
-                    x_smooth,
-                    p_smooth,
-                    p_lag1,
-                },
-            )?;
+            let view = FilteredView { x_pred, p_pred, x_filt, p_filt, gain };
+            smoother::rts_into(model, steps, view, SmootherOutputs { x_smooth, p_smooth, p_lag1 })?;
             Ok(loglik)
         })?;
         drop(slices);
@@ -220,9 +184,7 @@ impl PyLinearGaussian {
         let mut slices = out.slices()?;
         let model = &*self.inner;
         py.detach(|| {
-            let [x_out, p_out] = &mut slices[..] else {
-                unreachable!("two output arrays")
-            };
+            let [x_out, p_out] = &mut slices[..] else { unreachable!("two output arrays") };
             smoother::smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, x_out, p_out)
         })?;
         drop(slices);

@@ -13,18 +13,14 @@ fn square<'a>(arg: &str, a: &'a Array<'_>) -> PyResult<(&'a [f64], usize)> {
     let values = data(arg, a, 2)?;
     let shape = a.shape();
     if shape[0] != shape[1] {
-        return Err(KfastError::new_err(format!(
-            "{arg}: expected a square matrix, got shape {shape:?}"
-        )));
+        return Err(KfastError::new_err(format!("{arg}: expected a square matrix, got shape {shape:?}")));
     }
     Ok((values, shape[0]))
 }
 
 fn same_size(arg: &str, n: usize, m: usize, other: &str) -> PyResult<()> {
     if n != m {
-        return Err(KfastError::new_err(format!(
-            "{arg}: expected shape ({m}, {m}) like {other}, got ({n}, {n})"
-        )));
+        return Err(KfastError::new_err(format!("{arg}: expected shape ({m}, {m}) like {other}, got ({n}, {n})")));
     }
     Ok(())
 }
@@ -84,11 +80,8 @@ fn solution_dict<'py>(
     let dict = pyo3::types::PyDict::new(py);
     dict.set_item("x", to_array(py, &sol.x, &[n, n])?)?;
     dict.set_item("gain", to_array(py, &sol.gain, &[m, n])?)?;
-    let eig: Vec<numpy::Complex64> = sol
-        .closed_loop_eigenvalues
-        .iter()
-        .map(|&(re, im)| numpy::Complex64::new(re, im))
-        .collect();
+    let eig: Vec<numpy::Complex64> =
+        sol.closed_loop_eigenvalues.iter().map(|&(re, im)| numpy::Complex64::new(re, im)).collect();
     dict.set_item("closed_loop_eigenvalues", numpy::PyArray1::from_vec(py, eig))?;
     dict.set_item("residual", sol.residual)?;
     dict.set_item("iterations", sol.iterations)?;
@@ -104,30 +97,17 @@ fn riccati_args<'a>(
     r: &'a Array<'_>,
     e: Option<&'a Array<'_>>,
     s: Option<&'a Array<'_>>,
-) -> PyResult<(
-    &'a [f64],
-    &'a [f64],
-    &'a [f64],
-    &'a [f64],
-    Option<&'a [f64]>,
-    Option<&'a [f64]>,
-    usize,
-    usize,
-)> {
+) -> PyResult<(&'a [f64], &'a [f64], &'a [f64], &'a [f64], Option<&'a [f64]>, Option<&'a [f64]>, usize, usize)> {
     let (av, n) = square("a", a)?;
     let (bv, bn, m) = matrix("b", b)?;
     if bn != n {
-        return Err(KfastError::new_err(format!(
-            "b: expected {n} rows like a, got shape ({bn}, {m})"
-        )));
+        return Err(KfastError::new_err(format!("b: expected {n} rows like a, got shape ({bn}, {m})")));
     }
     let (qv, nq) = square("q", q)?;
     same_size("q", nq, n, "a")?;
     let (rv, mr) = square("r", r)?;
     if mr != m {
-        return Err(KfastError::new_err(format!(
-            "r: expected shape ({m}, {m}) (b has {m} columns), got ({mr}, {mr})"
-        )));
+        return Err(KfastError::new_err(format!("r: expected shape ({m}, {m}) (b has {m} columns), got ({mr}, {mr})")));
     }
     let ev = match e {
         Some(e) => {
@@ -141,9 +121,7 @@ fn riccati_args<'a>(
         Some(s) => {
             let (sv, sn, sm) = matrix("s", s)?;
             if (sn, sm) != (n, m) {
-                return Err(KfastError::new_err(format!(
-                    "s: expected shape ({n}, {m}), got ({sn}, {sm})"
-                )));
+                return Err(KfastError::new_err(format!("s: expected shape ({n}, {m}), got ({sn}, {sm})")));
             }
             Some(sv)
         }
@@ -214,9 +192,7 @@ pub(super) fn discretize<'py>(
         Some(b) => {
             let (bv, bn, k) = matrix("B", b)?;
             if bn != n {
-                return Err(KfastError::new_err(format!(
-                    "B: expected {n} rows like A, got shape ({bn}, {k})"
-                )));
+                return Err(KfastError::new_err(format!("B: expected {n} rows like A, got shape ({bn}, {k})")));
             }
             (Some(bv), k)
         }

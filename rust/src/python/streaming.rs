@@ -81,9 +81,7 @@ impl PyKalmanFilter {
     ) -> PyResult<Self> {
         let form: UpdateForm = parse_form(form)?;
         let (model, x0, p0) = model_and_prior(py, model, x0, P0)?;
-        Ok(PyKalmanFilter {
-            inner: filter::KalmanFilter::new(model, &x0, &p0, form)?,
-        })
+        Ok(PyKalmanFilter { inner: filter::KalmanFilter::new(model, &x0, &p0, form)? })
     }
 
     /// Measurement update with one observation y (length m; NaN = missing).
@@ -157,9 +155,7 @@ impl PyFixedLagSmoother {
         let lag = non_negative("lag", lag)?;
         let form = parse_form(form)?;
         let (model, x0, p0) = model_and_prior(py, model, x0, P0)?;
-        Ok(PyFixedLagSmoother {
-            inner: FixedLagSmoother::new(model, &x0, &p0, lag, form)?,
-        })
+        Ok(PyFixedLagSmoother { inner: FixedLagSmoother::new(model, &x0, &p0, lag, form)? })
     }
 
     /// Measurement update with one observation y (length m; NaN = missing).

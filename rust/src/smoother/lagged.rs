@@ -21,11 +21,7 @@ struct LagWindow {
 
 impl LagWindow {
     fn new(n: usize, m: usize, lag: usize) -> Self {
-        LagWindow {
-            slots: vec![PastState::new(n); lag + 1],
-            len: 0,
-            scratch: Scratch::new(n, m),
-        }
+        LagWindow { slots: vec![PastState::new(n); lag + 1], len: 0, scratch: Scratch::new(n, m) }
     }
 
     /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
@@ -78,11 +74,7 @@ pub fn smooth_fixed_lag(
     form: UpdateForm,
 ) -> Result<FixedLagResult> {
     let (n, steps) = (model.n_states(), y.steps());
-    let mut res = FixedLagResult {
-        lag,
-        x_smooth: vec![0.0; steps * n],
-        p_smooth: vec![0.0; steps * n * n],
-    };
+    let mut res = FixedLagResult { lag, x_smooth: vec![0.0; steps * n], p_smooth: vec![0.0; steps * n * n] };
     smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, &mut res.x_smooth, &mut res.p_smooth)?;
     Ok(res)
 }
@@ -161,11 +153,7 @@ pub fn smooth_fixed_point(
     }
     let (n, m) = (model.n_states(), model.n_obs());
     let rows = steps - t_point;
-    let mut res = FixedPointResult {
-        t_point,
-        x: vec![0.0; rows * n],
-        p: vec![0.0; rows * n * n],
-    };
+    let mut res = FixedPointResult { t_point, x: vec![0.0; rows * n], p: vec![0.0; rows * n * n] };
     let mut ws = start(model, x0, p0);
     let mut past = PastState::new(n);
     let mut scratch = Scratch::new(n, m);
@@ -193,10 +181,7 @@ pub fn smooth_fixed_point(
 
 fn check_len(arg: &'static str, buf: &[f64], want: usize) -> Result<()> {
     if buf.len() != want {
-        return Err(Error::arg(
-            arg,
-            format!("output buffer has {} entries, needs {want}", buf.len()),
-        ));
+        return Err(Error::arg(arg, format!("output buffer has {} entries, needs {want}", buf.len())));
     }
     Ok(())
 }
@@ -215,10 +200,7 @@ impl FixedLagSmoother {
     pub fn new(model: Arc<LinearGaussian>, x0: &[f64], p0: &[f64], lag: usize, form: UpdateForm) -> Result<Self> {
         let (n, m) = (model.n_states(), model.n_obs());
         let filter = KalmanFilter::new(model, x0, p0, form)?;
-        Ok(FixedLagSmoother {
-            filter,
-            window: LagWindow::new(n, m, lag),
-        })
+        Ok(FixedLagSmoother { filter, window: LagWindow::new(n, m, lag) })
     }
 
     /// Measurement update with y at the current step.
@@ -234,8 +216,7 @@ impl FixedLagSmoother {
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
         let t = self.filter.t();
         if !self.filter.is_updated() {
-            self.filter
-                .check_input(u, "B", self.filter.model().matrices().b.is_some())?;
+            self.filter.check_input(u, "B", self.filter.model().matrices().b.is_some())?;
             self.window.begin_step(self.filter.workspace());
         }
         self.filter.predict(u)?;
@@ -262,9 +243,7 @@ impl FixedLagSmoother {
     /// After an update at t: x̂(t−i | t), P(t−i | t) for i = 0..len (len ≤ lag + 1).
     pub fn window(&self) -> impl Iterator<Item = (&[f64], &[f64])> {
         let len = if self.filter.is_updated() { self.window.len } else { 0 };
-        self.window.slots[..len]
-            .iter()
-            .map(|s| (s.x.as_slice(), s.p.as_slice()))
+        self.window.slots[..len].iter().map(|s| (s.x.as_slice(), s.p.as_slice()))
     }
 
     /// The lag.

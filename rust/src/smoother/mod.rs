@@ -55,11 +55,7 @@ pub fn smooth(
         p_filt: &res.filter.p_filt,
         gain: &res.filter.gain,
     };
-    let out = SmootherOutputs {
-        x_smooth: &mut res.x_smooth,
-        p_smooth: &mut res.p_smooth,
-        p_lag1: &mut res.p_lag1,
-    };
+    let out = SmootherOutputs { x_smooth: &mut res.x_smooth, p_smooth: &mut res.p_smooth, p_lag1: &mut res.p_lag1 };
     rts_into(model, steps, view, out)?;
     Ok(res)
 }

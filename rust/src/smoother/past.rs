@@ -60,11 +60,7 @@ impl Scratch {
 
 impl PastState {
     pub fn new(n: usize) -> Self {
-        PastState {
-            x: vec![0.0; n],
-            p: vec![0.0; n * n],
-            c: vec![0.0; n * n],
-        }
+        PastState { x: vec![0.0; n], p: vec![0.0; n * n], c: vec![0.0; n * n] }
     }
 
     /// Starts tracking s = t from the filter's prediction: x̂(t|t−1), P(t|t−1), C = P(t|t−1).

@@ -85,11 +85,7 @@ pub fn rts_into(model: &LinearGaussian, steps: usize, filt: FilteredView<'_>, ou
         xs.copy_from_slice(&filt.x_filt[t * n..(t + 1) * n]);
         mul_vec_add(xs, &sc.j, &sc.dx, n, n);
         // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'
-        for (d, (ps, pp)) in sc
-            .dp
-            .iter_mut()
-            .zip(out.p_smooth[next.clone()].iter().zip(&filt.p_pred[next.clone()]))
-        {
+        for (d, (ps, pp)) in sc.dp.iter_mut().zip(out.p_smooth[next.clone()].iter().zip(&filt.p_pred[next.clone()])) {
             *d = ps - pp;
         }
         mul(&mut sc.tmp, &sc.dp, &sc.jt, n, n, n);
@@ -117,14 +113,7 @@ struct Backward {
 impl Backward {
     fn new(n: usize) -> Self {
         let z = |len| vec![0.0; len];
-        Backward {
-            j: z(n * n),
-            jt: z(n * n),
-            chol: z(n * n),
-            tmp: z(n * n),
-            dp: z(n * n),
-            dx: z(n),
-        }
+        Backward { j: z(n * n), jt: z(n * n), chol: z(n * n), tmp: z(n * n), dp: z(n * n), dx: z(n) }
     }
 }
 
@@ -139,9 +128,7 @@ fn solve_psd(a: &[f64], b: &mut [f64], chol: &mut [f64], n: usize) -> std::resul
         return Ok(());
     }
     let mat = faer::Mat::<f64>::from_fn(n, n, |i, j| a[i * n + j]);
-    let eig = mat
-        .self_adjoint_eigen(faer::Side::Lower)
-        .map_err(|_| "eigendecomposition failed".to_string())?;
+    let eig = mat.self_adjoint_eigen(faer::Side::Lower).map_err(|_| "eigendecomposition failed".to_string())?;
     let (u, s) = (eig.U(), eig.S().column_vector());
     let top = (0..n).map(|i| s[i].abs()).fold(0.0, f64::max);
     let cutoff = 1e-12 * top.max(f64::MIN_POSITIVE);
