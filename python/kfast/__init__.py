@@ -30,6 +30,7 @@ from kfast._model import (
     SmootherResult,
 )
 
+from kfast.batch import BatchResult, filter_batch
 from kfast.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
 from kfast.stationary import InnovationsForm, SteadyState
@@ -55,6 +56,8 @@ __all__ = [
     "Simulation",
     "KalmanFilter",
     "FixedLagSmoother",
+    "filter_batch",
+    "BatchResult",
     "fit",
     "FitResult",
     "EMResult",

@@ -36,6 +36,16 @@ def care(
 ) -> dict[str, Any]: ...
 
 def expm(a: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def filter_batch(
+    model: LinearGaussian,
+    Y: NDArray[np.float64],
+    x0: NDArray[np.float64],
+    P0: NDArray[np.float64],
+    u: Optional[NDArray[np.float64]] = None,
+    return_covs: bool = True,
+    threads: Optional[int] = None,
+    form: str = "joseph",
+) -> dict[str, Any]: ...
 def discretize(
     A: NDArray[np.float64], Qc: NDArray[np.float64], dt: NDArray[np.float64], B: Optional[NDArray[np.float64]] = None
 ) -> dict[str, NDArray[np.float64]]: ...

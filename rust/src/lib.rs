@@ -18,6 +18,8 @@
 //! - [`UpdateForm`]: Joseph (default) or standard covariance update.
 //! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances), [`smooth_fixed_lag`] and
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
+//! - [`filter_batch`]: many series through one model on all cores, the covariance recursion
+//!   computed once when it is shared.
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
 //! - [`solve_discrete_are`] / [`solve_continuous_are`] → [`RiccatiSolution`] (SciPy's
@@ -36,6 +38,7 @@
 //! assert!((res.p_pred[0] - 1.0).abs() < 1e-12); // Söderström ex. 6.17: P = 1 is stationary
 //! ```
 
+pub mod batch;
 mod dense;
 pub mod error;
 pub mod filter;
@@ -50,6 +53,7 @@ mod schur;
 pub mod simulate;
 pub mod smoother;
 
+pub use batch::{filter_batch, Batch, BatchOutputs};
 pub use error::{Error, Result};
 pub use filter::{
     filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm,

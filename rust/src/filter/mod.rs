@@ -266,7 +266,7 @@ impl Run<'_> {
     }
 
     /// The time loop, storing the outputs that are given; returns the log-likelihood.
-    fn filter<D: Dims>(&self, d: D, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Result<f64> {
+    pub(crate) fn filter<D: Dims>(&self, d: D, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Result<f64> {
         let (n, m) = (d.n(), d.m());
         let mut total = 0.0;
         for t in 0..self.y.steps() {

@@ -179,6 +179,30 @@ impl Workspace {
         }
     }
 
+    /// The data-independent part of the last fully observed update: P H' (n × m), the
+    /// Cholesky factor of S (m × m) and log det S.
+    pub fn gains(&self) -> (&[f64], &[f64], f64) {
+        (&self.pht[..self.n * self.m], &self.chol[..self.m * self.m], self.log_det)
+    }
+
+    /// Loads gains recorded by [`gains`](Self::gains) (and N at that step) and freezes the
+    /// covariance recursion: the next fully observed update and time update then move only
+    /// the state, with exactly the operations of the full recursion.
+    pub fn load_gains(&mut self, pht: &[f64], chol: &[f64], log_det: f64, n_mat: Option<&[f64]>) {
+        let (n, m) = (self.n, self.m);
+        self.pht[..n * m].copy_from_slice(pht);
+        self.chol[..m * m].copy_from_slice(chol);
+        self.log_det = log_det;
+        if let Some(nn) = n_mat {
+            self.n_o[..n * m].copy_from_slice(nn);
+        }
+        self.m_obs = m;
+        for (i, o) in self.obs.iter_mut().enumerate() {
+            *o = i;
+        }
+        self.frozen = true;
+    }
+
     /// The run-time sizes.
     pub fn dims(&self) -> Dyn {
         Dyn { n: self.n, m: self.m }

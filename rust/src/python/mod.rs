@@ -232,6 +232,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::solve_continuous_lyapunov, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
+    m.add_function(wrap_pyfunction!(model::filter_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;

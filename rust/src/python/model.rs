@@ -271,3 +271,66 @@ impl PyLinearGaussian {
         Ok((to_array(py, &xs, &[steps, n])?, to_array(py, &ys, &[steps, m])?))
     }
 }
+
+/// Many series: dict with x_filt (B, T, n), P_filt ((T, n, n) when shared, else (B, T, n, n);
+/// absent without covariances), loglik (B,), shared (bool).
+#[pyfunction]
+#[pyo3(signature = (model, Y, x0, P0, u=None, return_covs=true, threads=None, form="joseph"))]
+#[allow(non_snake_case)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn filter_batch<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyLinearGaussian>,
+    Y: Array<'py>,
+    x0: Array<'py>,
+    P0: Array<'py>,
+    u: Option<Array<'py>>,
+    return_covs: bool,
+    threads: Option<usize>,
+    form: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let form = parse_form(form)?;
+    let model = model.get().inner.clone();
+    let (n, m) = (model.n_states(), model.n_obs());
+    let yv = super::data("Y", &Y, 3)?;
+    let (bs, steps, width) = (Y.shape()[0], Y.shape()[1], Y.shape()[2]);
+    if width != m {
+        return Err(KfastError::new_err(format!(
+            "Y: expected shape (B, T, {m}) for m = {m} outputs, got {:?}",
+            Y.shape()
+        )));
+    }
+    let (uv, u_shared) = match &u {
+        Some(u) => (Some(u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?), u.ndim() == 2),
+        None => (None, false),
+    };
+    let batch = crate::Batch {
+        y: yv,
+        series: bs,
+        steps,
+        u: uv,
+        u_shared,
+        x0: x0.as_slice().map_err(|_| KfastError::new_err("x0: array is not contiguous"))?,
+        p0: P0.as_slice().map_err(|_| KfastError::new_err("P0: array is not contiguous"))?,
+        form,
+    };
+    let shared = crate::batch::shares_covariances(&model, &batch);
+    let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
+    if return_covs {
+        specs.push(("P_filt", if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] }));
+    }
+    let spec_refs: Vec<(&'static str, &[usize])> = specs.iter().map(|(k, v)| (*k, v.as_slice())).collect();
+    let mut out = OutArrays::new(py, &spec_refs);
+    let mut slices = out.slices()?;
+    let shared = py.detach(|| {
+        let mut it = slices.iter_mut();
+        let x_filt = it.next().expect("x_filt");
+        let loglik = it.next().expect("loglik");
+        let p_filt = it.next().map(|p| &mut **p);
+        crate::filter_batch(&model, batch, crate::BatchOutputs { x_filt, p_filt, loglik }, threads)
+    })?;
+    drop(slices);
+    let dict = out.into_dict(py)?;
+    dict.set_item("shared", shared)?;
+    Ok(dict)
+}

@@ -1,0 +1,78 @@
+"""Many independent series through one model, on all cores: ``kfast.filter_batch``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from kfast import _kfast
+from kfast._arrays import as_float64
+from kfast._model import LinearGaussian, _form
+
+__all__ = ["filter_batch", "BatchResult"]
+
+
+@dataclass(frozen=True, repr=False)
+class BatchResult:
+    """Filtered states of B series of T steps."""
+
+    x_filt: np.ndarray
+    """x(t|t) of every series, shape (B, T, n)."""
+    P_filt: Optional[np.ndarray]
+    """P(t|t), shape (B, T, n, n) (a read-only broadcast view of one (T, n, n) array when
+    ``shared_covariance``); None with ``return_covs=False``."""
+    loglik: np.ndarray
+    """Log-likelihood of each series, shape (B,)."""
+    shared_covariance: bool
+    """True when the covariance recursion was computed once for all series (no missing value
+    and one prior covariance): it does not depend on the data."""
+
+    def __repr__(self) -> str:
+        B, T, n = self.x_filt.shape
+        return f"BatchResult(B={B}, T={T}, n={n}, shared_covariance={self.shared_covariance})"
+
+
+def filter_batch(
+    model: LinearGaussian,
+    Y,
+    x0,
+    P0,
+    u=None,
+    return_covs: bool = True,
+    threads: Optional[int] = None,
+    form: str = "joseph",
+) -> BatchResult:
+    """Kalman-filter every series of Y, shape (B, T, m) (NaN = missing, per component), in
+    parallel over series with one release of the GIL. x0 is (n,) shared or (B, n); P0 (n, n)
+    shared or (B, n, n); u (T, k) shared or (B, T, k). ``threads`` (default: all cores).
+
+    When nothing is missing and P0 is shared, the covariance recursion (which does not
+    depend on the data) is computed once and each series only moves its state. Results are
+    those of ``model.filter`` on each series alone, bit for bit. A pure function of its
+    arguments: it maps unchanged over chunks of series (e.g. blocks of a Dask array).
+    """
+    Y = as_float64("Y", Y)
+    if Y.ndim == 2 and model.n_obs == 1:
+        Y = Y[:, :, None]
+    if Y.ndim != 3:
+        raise _kfast.KfastError(f"Y: expected a 3-D array (B, T, m), got shape {Y.shape}")
+    n = model.n_states
+    x0 = as_float64("x0", x0)
+    P0 = as_float64("P0", P0)
+    if x0.ndim not in (1, 2):
+        raise _kfast.KfastError(f"x0: expected shape ({n},) or (B, {n}), got {x0.shape}")
+    if P0.ndim not in (2, 3):
+        raise _kfast.KfastError(f"P0: expected shape ({n}, {n}) or (B, {n}, {n}), got {P0.shape}")
+    if u is not None:
+        u = as_float64("u", u)
+        if u.ndim not in (2, 3):
+            raise _kfast.KfastError(f"u: expected shape (T, k) or (B, T, k), got {u.shape}")
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1):
+        raise _kfast.KfastError(f"threads: expected a positive integer, got {threads!r}")
+    out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_form(form))
+    P = out.get("P_filt")
+    if P is not None and out["shared"]:
+        P = np.broadcast_to(P, (Y.shape[0],) + P.shape)
+    return BatchResult(x_filt=out["x_filt"], P_filt=P, loglik=out["loglik"], shared_covariance=bool(out["shared"]))

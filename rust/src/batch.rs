@@ -1,0 +1,238 @@
+//! Many independent series through one model, in parallel (rayon): [`filter_batch`].
+//!
+//! When no value is missing, the prior covariance is shared and (so) the covariance
+//! recursion does not depend on the data, it is computed once: P H', the Cholesky factor of S
+//! and log det S per step. Each series then only moves its state, with exactly the
+//! operations of the full recursion (so its results are bit-for-bit those of filtering it
+//! alone), at O(n² + nm + m²) per series-step. Otherwise every series runs the full filter.
+//! `filter_batch` is a pure function of (model, block of series): it maps unchanged over
+//! chunks of series.
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::filter::step::Dims;
+use crate::filter::{check_data, start, with_dims, FilterOutputs, Run, Series, UpdateForm, Workspace};
+use crate::model::LinearGaussian;
+
+/// Series `(B, T, m)`, inputs, priors and options of a batch.
+#[derive(Debug, Clone, Copy)]
+pub struct Batch<'a> {
+    /// Observations, `B × T × m` row-major; NaN = missing.
+    pub y: &'a [f64],
+    /// Number of series B.
+    pub series: usize,
+    /// Steps per series T.
+    pub steps: usize,
+    /// Inputs `B × T × k`, or `T × k` shared by all series.
+    pub u: Option<&'a [f64]>,
+    /// Whether `u` is shared (`T × k`).
+    pub u_shared: bool,
+    /// Prior means: `n` (shared) or `B × n`.
+    pub x0: &'a [f64],
+    /// Prior covariances: `n × n` (shared) or `B × n × n`.
+    pub p0: &'a [f64],
+    /// Covariance update form.
+    pub form: UpdateForm,
+}
+
+/// Output buffers of [`filter_batch`].
+#[derive(Debug)]
+pub struct BatchOutputs<'a> {
+    /// x̂(t|t) of every series, `B × T × n`.
+    pub x_filt: &'a mut [f64],
+    /// P(t|t): `T × n × n` when [`filter_batch`] returns `true` (shared by all series),
+    /// else `B × T × n × n`; `None` to skip covariances.
+    pub p_filt: Option<&'a mut [f64]>,
+    /// Log-likelihood of each series, `B`.
+    pub loglik: &'a mut [f64],
+}
+
+/// Whether the covariance recursion can be shared: no missing value and one prior covariance.
+pub fn shares_covariances(model: &LinearGaussian, batch: &Batch<'_>) -> bool {
+    let n = model.n_states();
+    batch.p0.len() == n * n && !batch.y.iter().any(|v| v.is_nan())
+}
+
+/// Filters every series of `batch` (in parallel on `threads` threads, all cores when `None`);
+/// returns whether the covariances were shared (then `p_filt` is `T × n × n`).
+pub fn filter_batch(
+    model: &LinearGaussian,
+    batch: Batch<'_>,
+    out: BatchOutputs<'_>,
+    threads: Option<usize>,
+) -> Result<bool> {
+    let shared = shares_covariances(model, &batch);
+    check_batch(model, &batch, &out, shared)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::arg("threads", e.to_string()))?;
+    pool.install(|| if shared { run_shared(model, &batch, out) } else { run_each(model, &batch, out) })?;
+    Ok(shared)
+}
+
+fn check_batch(model: &LinearGaussian, b: &Batch<'_>, out: &BatchOutputs<'_>, shared: bool) -> Result<()> {
+    let (n, m, k) = (model.n_states(), model.n_obs(), model.n_inputs());
+    let (bs, t) = (b.series, b.steps);
+    if b.y.len() != bs * t * m {
+        return Err(Error::arg("Y", format!("expected {bs} × {t} × {m} values, got {}", b.y.len())));
+    }
+    if bs == 0 {
+        return Err(Error::arg("Y", "has no series (B = 0)"));
+    }
+    if b.x0.len() != n && b.x0.len() != bs * n {
+        return Err(Error::arg("x0", format!("expected shape ({n},) or ({bs}, {n}), got {} values", b.x0.len())));
+    }
+    if b.p0.len() != n * n && b.p0.len() != bs * n * n {
+        return Err(Error::arg(
+            "P0",
+            format!("expected shape ({n}, {n}) or ({bs}, {n}, {n}), got {} values", b.p0.len()),
+        ));
+    }
+    if let Some(u) = b.u {
+        let want = if b.u_shared { t * k } else { bs * t * k };
+        if u.len() != want {
+            return Err(Error::arg("u", format!("expected {want} values, got {}", u.len())));
+        }
+    }
+    // Validate each series as the single-series filter would (data, inputs, prior).
+    for s in 0..bs {
+        let (y, u, x0, p0) = series_parts(model, b, s);
+        check_data(model, y, u, x0, p0).map_err(|e| prefix_series(e, s))?;
+    }
+    let covs = if shared { t * n * n } else { bs * t * n * n };
+    for (arg, got, want) in [
+        ("x_filt", Some(out.x_filt.len()), bs * t * n),
+        ("P_filt", out.p_filt.as_ref().map(|p| p.len()), covs),
+        ("loglik", Some(out.loglik.len()), bs),
+    ] {
+        if let Some(got) = got {
+            if got != want {
+                return Err(Error::arg(arg, format!("output buffer has {got} entries, needs {want}")));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn prefix_series(e: Error, s: usize) -> Error {
+    match e {
+        Error::InvalidArgument { arg, step, problem } => Error::InvalidArgument {
+            arg: if arg == "y" { "Y" } else { arg },
+            step,
+            problem: format!("(series {s}) {problem}"),
+        },
+        Error::InnovationCovariance { step, problem } => {
+            Error::InnovationCovariance { step, problem: format!("(series {s}) {problem}") }
+        }
+        other => other,
+    }
+}
+
+/// Series `s`: its data, inputs and prior.
+fn series_parts<'a>(
+    model: &LinearGaussian,
+    b: &Batch<'a>,
+    s: usize,
+) -> (Series<'a>, Option<Series<'a>>, &'a [f64], &'a [f64]) {
+    let (n, m, k, t) = (model.n_states(), model.n_obs(), model.n_inputs(), b.steps);
+    let y = Series::new("Y", &b.y[s * t * m..(s + 1) * t * m], t, m).expect("sizes checked");
+    let u = b.u.map(|u| {
+        let rows = if b.u_shared { u } else { &u[s * t * k..(s + 1) * t * k] };
+        Series::new("u", rows, t, k).expect("sizes checked")
+    });
+    let x0 = if b.x0.len() == n { b.x0 } else { &b.x0[s * n..(s + 1) * n] };
+    let p0 = if b.p0.len() == n * n { b.p0 } else { &b.p0[s * n * n..(s + 1) * n * n] };
+    (y, u, x0, p0)
+}
+
+/// The data-independent covariance recursion, once: per step P H', chol S, log det S, P(t|t).
+struct SharedGains {
+    pht: Vec<f64>,
+    chol: Vec<f64>,
+    log_det: Vec<f64>,
+    p_filt: Vec<f64>,
+}
+
+fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
+    let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
+    let mut ws = start(model, &vec![0.0; n], b.p0);
+    let zeros = vec![0.0; m];
+    let zeros_u = vec![0.0; model.n_inputs()];
+    let mut g = SharedGains {
+        pht: Vec::with_capacity(t * n * m),
+        chol: Vec::with_capacity(t * m * m),
+        log_det: Vec::with_capacity(t),
+        p_filt: Vec::with_capacity(t * n * n),
+    };
+    let u = model.has_input().then_some(zeros_u.as_slice());
+    for step in 0..t {
+        let sys = model.at(step);
+        ws.update(ws.dims(), &sys, &zeros, u, b.form, step)?;
+        let (pht, chol, log_det) = ws.gains();
+        g.pht.extend_from_slice(pht);
+        g.chol.extend_from_slice(chol);
+        g.log_det.push(log_det);
+        g.p_filt.extend_from_slice(&ws.p_filt);
+        ws.predict(ws.dims(), &sys, u);
+    }
+    Ok(g)
+}
+
+fn run_shared(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Result<()> {
+    let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
+    let gains = shared_gains(model, b)?;
+    if let Some(p) = out.p_filt {
+        p.copy_from_slice(&gains.p_filt);
+    }
+    let rows = out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).enumerate();
+    rows.for_each_init(
+        || Workspace::new(n, m, model.n_inputs()),
+        |ws, (s, (x_out, ll))| {
+            let (y, u, x0, _) = series_parts(model, b, s);
+            ws.x_pred.copy_from_slice(x0);
+            let run = Run { model, y, u, form: b.form };
+            *ll = with_dims!(n, m, run.means_only(ws, &gains, x_out));
+        },
+    );
+    Ok(())
+}
+
+impl Run<'_> {
+    /// The state recursion of one series with the shared gains; returns its log-likelihood.
+    fn means_only<D: Dims>(&self, d: D, ws: &mut Workspace, g: &SharedGains, x_out: &mut [f64]) -> f64 {
+        let (n, m) = (d.n(), d.m());
+        let mut total = 0.0;
+        for t in 0..self.y.steps() {
+            let sys = self.model.at(t);
+            let u_t = self.u.map(|u| u.row(t));
+            ws.load_gains(&g.pht[t * n * m..(t + 1) * n * m], &g.chol[t * m * m..(t + 1) * m * m], g.log_det[t], sys.n);
+            // Never fails: the data are complete and the gains were computed already.
+            let _ = ws.update(d, &sys, self.y.row(t), u_t, self.form, t);
+            ws.predict(d, &sys, u_t);
+            total += ws.loglik_t;
+            x_out[t * n..(t + 1) * n].copy_from_slice(&ws.x_filt[..n]);
+        }
+        total
+    }
+}
+
+fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Result<()> {
+    let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
+    let covs: Vec<Option<&mut [f64]>> = match out.p_filt {
+        Some(p) => p.chunks_mut(t * n * n).map(Some).collect(),
+        None => (0..b.series).map(|_| None).collect(),
+    };
+    out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).zip(covs).enumerate().try_for_each(
+        |(s, ((x_out, ll), p_out))| -> Result<()> {
+            let (y, u, x0, p0) = series_parts(model, b, s);
+            let mut ws = start(model, x0, p0);
+            ws.want_gain_pred = false;
+            let run = Run { model, y, u, form: b.form };
+            let mut o = FilterOutputs { x_filt: Some(x_out), p_filt: p_out, ..Default::default() };
+            *ll = with_dims!(n, m, run.filter(&mut ws, &mut o)).map_err(|e| prefix_series(e, s))?;
+            Ok(())
+        },
+    )
+}
