@@ -23,23 +23,31 @@ enum Kind {
     Continuous,
 }
 
+/// The square row-major `a` (n × n) as a faer matrix.
 pub(crate) fn to_mat(a: &[f64], n: usize) -> Mat<f64> {
     Mat::from_fn(n, n, |i, j| a[i * n + j])
 }
 
+/// A faer matrix as a row-major vector.
 pub(crate) fn from_mat(m: &Mat<f64>) -> Vec<f64> {
     let (r, c) = (m.nrows(), m.ncols());
     (0..r * c).map(|k| m[(k / c, k % c)]).collect()
 }
 
+/// The row-major `v` as a `rows × cols` faer matrix, after checking its size and that every
+/// entry is finite (`arg` names it in errors).
+pub(crate) fn checked_mat(arg: &'static str, v: &[f64], rows: usize, cols: usize) -> Result<Mat<f64>> {
+    if v.len() != rows * cols {
+        return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
+    }
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
+    }
+    Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
+}
+
 fn check_square(arg: &'static str, a: &[f64], n: usize) -> Result<()> {
-    if a.len() != n * n {
-        return Err(Error::arg(arg, format!("expected an ({n}, {n}) matrix, got {} entries", a.len())));
-    }
-    if let Some(v) = a.iter().find(|v| !v.is_finite()) {
-        return Err(Error::arg(arg, format!("contains a non-finite value ({v})")));
-    }
-    Ok(())
+    checked_mat(arg, a, n, n).map(|_| ())
 }
 
 /// X solving X = a X a' + q (SciPy's `solve_discrete_lyapunov(a, q)`).

@@ -19,7 +19,7 @@ use faer::linalg::solvers::Solve;
 use faer::{c64, Mat};
 
 use crate::error::{Error, Result};
-use crate::lyapunov::{from_mat, solve_continuous_lyapunov, solve_discrete_lyapunov, to_mat};
+use crate::lyapunov::{checked_mat, from_mat, solve_continuous_lyapunov, solve_discrete_lyapunov, to_mat};
 
 /// How the DARE is solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -87,15 +87,7 @@ fn problem(
     n: usize,
     m: usize,
 ) -> Result<Problem> {
-    let check = |arg: &'static str, v: &[f64], rows: usize, cols: usize| -> Result<Mat<f64>> {
-        if v.len() != rows * cols {
-            return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
-        }
-        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-            return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
-        }
-        Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
-    };
+    let check = checked_mat;
     let (a, b, q, r) = (check("a", a, n, n)?, check("b", b, n, m)?, check("q", q, n, n)?, check("r", r, m, m)?);
     for (arg, mat, size) in [("q", &q, n), ("r", &r, m)] {
         crate::model::check_symmetric(&from_mat(mat), size).map_err(|p| Error::arg(arg, p))?;

@@ -15,7 +15,7 @@ use faer::linalg::solvers::Solve;
 use faer::Mat;
 
 use crate::error::{Error, Result};
-use crate::lyapunov::{from_mat, to_mat};
+use crate::lyapunov::{checked_mat, from_mat, to_mat};
 
 const PADE13: [f64; 14] = [
     64_764_752_532_480_000.0,
@@ -89,23 +89,13 @@ pub struct Discretized {
 
 /// Van Loan discretization of (A, Qc, B) over `dt` (ALGORITHMS.md §8a).
 pub fn discretize(a: &[f64], qc: &[f64], b: Option<&[f64]>, n: usize, k: usize, dt: f64) -> Result<Discretized> {
-    let (am, qm) = (checked("A", a, n, n)?, checked("Qc", qc, n, n)?);
+    let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
     crate::model::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
-    let bm = b.map(|b| checked("B", b, n, k)).transpose()?;
+    let bm = b.map(|b| checked_mat("B", b, n, k)).transpose()?;
     if !(dt > 0.0 && dt.is_finite()) {
         return Err(Error::arg("dt", format!("must be positive and finite, got {dt}")));
     }
     Ok(discretize_mat(&am, &qm, bm.as_ref(), dt))
-}
-
-fn checked(arg: &'static str, v: &[f64], rows: usize, cols: usize) -> Result<Mat<f64>> {
-    if v.len() != rows * cols {
-        return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
-    }
-    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-        return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
-    }
-    Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
 }
 
 fn discretize_mat(a: &Mat<f64>, qc: &Mat<f64>, b: Option<&Mat<f64>>, dt: f64) -> Discretized {
@@ -156,9 +146,9 @@ pub fn discretize_steps(
     k: usize,
     dts: &[f64],
 ) -> Result<Discretized> {
-    let (am, qm) = (checked("A", a, n, n)?, checked("Qc", qc, n, n)?);
+    let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
     crate::model::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
-    let bm = b.map(|b| checked("B", b, n, k)).transpose()?;
+    let bm = b.map(|b| checked_mat("B", b, n, k)).transpose()?;
     if let Some((t, dt)) = dts.iter().enumerate().find(|(_, dt)| !(**dt > 0.0 && dt.is_finite())) {
         return Err(Error::arg_at("dt", t, format!("must be positive and finite, got {dt}")));
     }

@@ -203,13 +203,7 @@ pub fn loglik(
     p0: &[f64],
     options: impl Into<FilterOptions>,
 ) -> Result<f64> {
-    let options = options.into();
-    check_data(model, y, u, x0, p0)?;
-    let mut ws = start(model, x0, p0);
-    ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
-    ws.want_gain_pred = false;
-    let run = Run { model, y, u, form: options.form };
-    with_dims!(model.n_states(), model.n_obs(), run.filter(&mut ws, &mut FilterOutputs::default()))
+    filter_into(model, y, u, x0, p0, options, FilterOutputs::default())
 }
 
 pub(crate) fn start(model: &LinearGaussian, x0: &[f64], p0: &[f64]) -> Workspace {
