@@ -1,11 +1,14 @@
 #!/usr/bin/env python
 """kfast benchmark harness: W1 (filter), W2 (RTS smoother), W3 (log-likelihood),
-W7 (streaming).
+W7 (streaming), plus W4 (n = 20 filter), W5 (many series), W8 (scaling in n) and
+MEM (peak RSS) from bench_more.py, and W6 (the DARE) from bench_riccati.py.
 
-    python benches/bench_filter.py            # full run (~2 min on 2 cores)
+    python benches/bench_filter.py            # full run (~2.5 min on 2 cores)
     python benches/bench_filter.py --quick    # smoke run (~15 s)
     python benches/bench_filter.py --write    # full run, then rewrite the
-                                              # results block of BENCHMARKS.md
+                                              # results blocks of BENCHMARKS.md
+                                              # and benches/plots/*.png
+    python benches/bench_filter.py --only W4,W8   # a subset (W1-W8, MEM)
 
 Model "CV" (2-D constant velocity, n=4, m=2, dt=0.1, q=1, R=I, float64),
 data simulated from the model with a fixed seed.
@@ -870,7 +873,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="short smoke run")
     ap.add_argument("--write", action="store_true", help="rewrite the results block of BENCHMARKS.md")
     ap.add_argument("--rounds", type=int, default=None, help="interleaved rounds per workload")
-    ap.add_argument("--only", default="W1,W2,W3,W7", help="comma list of workloads")
+    ap.add_argument("--only", default="W1,W2,W3,W4,W5,W6,W7,W8,MEM",
+                    help="comma list of workloads (W1-W8, MEM)")
     ap.add_argument("--json", metavar="PATH", help="also dump the medians as JSON to PATH")
     args = ap.parse_args(argv)
 
@@ -1025,6 +1029,32 @@ def main(argv=None):
         log(table(cs, ["kfast stream"], "W7 results"))
         results["W7"] = (cs, ["kfast stream"], {})
 
+    # ---------------- W4, W5, W8, MEM (benches/bench_more.py) ----------------
+    more = None
+    if todo & {"W4", "W5", "W8", "MEM"}:
+        import bench_more as more
+    if "W4" in todo:
+        log(f"\n== W4: filter, random stable model n={more.W4_N}, m={more.W4_M} (rho 0.95) ==")
+        results["W4"] = more.run_w4(rounds, quick, log)
+    if "W5" in todo:
+        log("\n== W5: many series, kfast.filter_batch (CV model) ==")
+        results["W5"] = more.run_w5(rounds, quick, log)
+    if "W8" in todo:
+        log("\n== W8: scaling in n (random stable, m = n/2) ==")
+        results["W8"] = ("md", more.run_w8(max(3, rounds // 2), quick, log))
+    if "MEM" in todo:
+        log("\n== MEM: peak RSS of a W1 run in a fresh interpreter ==")
+        results["MEM"] = ("md", more.run_mem(quick, log))
+    w6 = None
+    if "W6" in todo:
+        log("\n== W6: the DARE (benches/bench_riccati.py) ==")
+        try:
+            import bench_riccati
+            w6 = bench_riccati.run(quick)
+            log(bench_riccati.table(w6))
+        except Exception as e:  # noqa: BLE001
+            log(f"W6 failed: {_short_err(e)}")
+
     elapsed = time.time() - t_start
     try:
         info["load_end"] = "%.2f %.2f %.2f" % os.getloadavg()
@@ -1039,7 +1069,7 @@ def main(argv=None):
                 w: [{"name": c.name, "steps": c.steps, "ok": c.ok, "error": c.error,
                      "ns_per_step": c.ns_per_step() if c.ok else None,
                      "iqr": list(c.spread()) if c.ok else None, "samples": len(c.samples)}
-                    for c in cs] for w, (cs, _, _) in results.items()}}
+                    for c in r[0]] for w, r in results.items() if r[0] != "md"}}
             with open(args.json, "w") as f:
                 json.dump(dump, f, indent=1)
             log(f"wrote {args.json}")
@@ -1047,7 +1077,19 @@ def main(argv=None):
             log(f"--json failed: {_short_err(e)}")
 
     if args.write:
+        if more is not None:
+            try:
+                more.make_plots(results, log)
+            except Exception as e:  # noqa: BLE001
+                log(f"plots failed: {_short_err(e)}")
         write_md(info, results, quick, T, T_slow, T_stream_k, T_stream_p, rounds, sm_ss_note, log)
+        if w6 is not None:
+            try:
+                import bench_riccati
+                bench_riccati.write_block(w6)
+                log("wrote the W6 block of BENCHMARKS.md")
+            except Exception as e:  # noqa: BLE001
+                log(f"W6 write failed: {_short_err(e)}")
     return 0
 
 
@@ -1070,17 +1112,38 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
     titles = {"W1": "W1: filter (x_filt, P_filt for every step)",
               "W2": "W2: filter + RTS smoother (x_smooth, P_smooth for every step)",
               "W3": "W3: total log-likelihood",
-              "W7": "W7: streaming predict + update from Python"}
-    for w in ("W1", "W2", "W3", "W7"):
+              "W4": "W4: filter, random stable model n = 20, m = 5 (x_filt, P_filt for every step)",
+              "W5": "W5: many series, B = 10,000 CV series of T = 500 (ns per series-step; the T column is B × T)",
+              "W7": "W7: streaming predict + update from Python",
+              "W8": "W8: scaling in n (x_filt, P_filt; random stable model, m = n/2)",
+              "MEM": "Memory: peak RSS of a W1 run"}
+    for w in ("W1", "W2", "W3", "W4", "W5", "W7", "W8", "MEM"):
         if w not in results:
+            continue
+        if results[w][0] == "md":
+            import bench_more
+            lines.append(f"#### {titles[w]}")
+            lines.append("")
+            if w == "W8":
+                lines.append("GFLOP/s = flop/step ÷ ns/step with flop/step = 4n³ + 4n²m + 4nm² + m³/3 + 2n² + 4nm "
+                             "(dense standard-form update and prediction, no symmetry used), for every "
+                             "contender and form alike. statsmodels: tuned options, tolerance=0.")
+                lines.append("")
+                lines.append(bench_more.w8_markdown(results[w][1]))
+                lines.append("")
+                lines.append("![W8 scaling](benches/plots/w8_scaling.png)")
+            else:
+                lines.append(bench_more.mem_markdown(results[w][1]))
+            lines.append("")
             continue
         cs, knames, chk = results[w]
         lines.append(table(cs, knames, titles[w], md=True))
         if chk:
-            lines.append("Cross-check against the C loop (same data, same T):")
+            lines.append("Cross-check against kfast.filter_batch on the same series:" if w == "W5"
+                         else "Cross-check against the C loop (same data, same T):")
             lines.append("")
             for name, v in chk.items():
-                if isinstance(v, tuple) and w == "W2":
+                if isinstance(v, tuple) and w == "W2":  # noqa: SIM114
                     extra = (f"; lag-one covariances vs statsmodels' smoothed_state_autocov "
                              f"(tolerance=0): max|dP_lag1| = {v[2]:.1e}" if len(v) > 2 else "")
                     lines.append(f"- {name}: max|dx_smooth| = {v[0]:.1e}, max|dP_smooth| = {v[1]:.1e}{extra}")
@@ -1089,6 +1152,9 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
                 else:
                     lines.append(f"- {name}: |loglik - C| = {v:.1e}")
             lines.append("")
+    if any(w in results for w in ("W1", "W2", "W3", "W4", "W5")):
+        lines.append("![W1-W5: kfast vs the C loop vs the fastest peer](benches/plots/w1_w5_bars.png)")
+        lines.append("")
     lines.append(END)
     block = "\n".join(lines)
     try:

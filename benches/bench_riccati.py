@@ -134,15 +134,22 @@ def main(argv=None):
     text = table(rows)
     print(text)
     if args.write:
-        stamp = datetime.date.today().isoformat()
-        block = f"{BEGIN}\n\nMeasured {stamp} on {machine()}; load {os.getloadavg()[0]:.2f}.\n\n{text}\n\n{END}"
-        path = ROOT / "BENCHMARKS.md"
-        doc = path.read_text()
-        if BEGIN in doc:
-            doc = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), block, doc, flags=re.S)
-        else:
-            doc += "\n## W6: the DARE\n\n`python benches/bench_riccati.py --write`\n\n" + block + "\n"
-        path.write_text(doc)
+        write_block(rows)
+    return 0
+
+
+def write_block(rows):
+    """Rewrite the W6 block of BENCHMARKS.md (also called from bench_filter.py --write)."""
+    text = table(rows)
+    stamp = datetime.date.today().isoformat()
+    block = f"{BEGIN}\n\nMeasured {stamp} on {machine()}; load {os.getloadavg()[0]:.2f}.\n\n{text}\n\n{END}"
+    path = ROOT / "BENCHMARKS.md"
+    doc = path.read_text()
+    if BEGIN in doc:
+        doc = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), block, doc, flags=re.S)
+    else:
+        doc += "\n## W6: the DARE\n\n`python benches/bench_riccati.py --write`\n\n" + block + "\n"
+    path.write_text(doc)
     return 0
 
 
