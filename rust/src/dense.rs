@@ -53,6 +53,41 @@ pub(crate) fn mul_bt(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n:
     }
 }
 
+/// `c[n×n] = a[n×k] · b[k×n]` for a product known to be symmetric (e.g. P H' S⁻¹ H P): one
+/// triangle is computed and mirrored (large sizes: the full product, then symmetrized).
+#[inline(always)]
+pub(crate) fn mul_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
+    if n * k * n >= FAER_MIN_FLOPS {
+        mul(c, a, b, n, k, n);
+        return symmetrize(c, n);
+    }
+    for i in 0..n {
+        for j in i..n {
+            let v: f64 = (0..k).map(|l| a[i * k + l] * b[l * n + j]).sum();
+            c[i * n + j] = v;
+            c[j * n + i] = v;
+        }
+    }
+}
+
+/// `c[n×n] = a[n×k] · b[n×k]'` for a product known to be symmetric (e.g. (F P) F'): one
+/// triangle is computed and mirrored.
+#[inline(always)]
+pub(crate) fn mul_bt_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
+    if n * k * n >= FAER_MIN_FLOPS {
+        mul_bt(c, a, b, n, k, n);
+        return symmetrize(c, n);
+    }
+    for i in 0..n {
+        let ai = &a[i * k..(i + 1) * k];
+        for j in i..n {
+            let v: f64 = ai.iter().zip(&b[j * k..(j + 1) * k]).map(|(x, y)| x * y).sum();
+            c[i * n + j] = v;
+            c[j * n + i] = v;
+        }
+    }
+}
+
 /// `y[m] = a[m×k] · x[k]`.
 #[inline(always)]
 pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {

@@ -16,7 +16,9 @@
 //! Missing data: only the observed components of y update (their rows of H, D, R and columns of
 //! N); a step with nothing observed skips the update and its time update has no N term.
 
-use crate::dense::{cholesky, mul, mul_bt, mul_vec, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose};
+use crate::dense::{
+    cholesky, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose,
+};
 use crate::error::{Error, Result};
 use crate::model::StepView;
 
@@ -302,7 +304,7 @@ impl Workspace {
         match form {
             UpdateForm::Standard => {
                 // P − K S K' = P − (P H') K'
-                mul(&mut self.nn_a, pht, gain_t, n, mo, n);
+                mul_sym(&mut self.nn_a, pht, gain_t, n, mo);
                 for ((pf, p), ksk) in self.p_filt.iter_mut().zip(&self.p_pred).zip(&self.nn_a) {
                     *pf = p - ksk;
                 }
@@ -319,10 +321,10 @@ impl Workspace {
                     self.nn_a[i * n + i] += 1.0;
                 }
                 mul(&mut self.nn_b, &self.nn_a, &self.p_pred, n, n, n);
-                mul_bt(&mut self.p_filt, &self.nn_b, &self.nn_a, n, n, n);
+                mul_bt_sym(&mut self.p_filt, &self.nn_b, &self.nn_a, n, n);
                 // K R_o K' = K (R_o K') with R_o K' = r_o · gain_t (mo × n)
                 mul(&mut self.mn_a[..mo * n], &self.r_o[..mo * mo], gain_t, mo, mo, n);
-                mul(&mut self.nn_b, kgain, &self.mn_a[..mo * n], n, mo, n);
+                mul_sym(&mut self.nn_b, kgain, &self.mn_a[..mo * n], n, mo);
                 for (pf, krk) in self.p_filt.iter_mut().zip(&self.nn_b) {
                     *pf += krk;
                 }
@@ -418,7 +420,7 @@ impl Workspace {
             self.p_prev.copy_from_slice(&self.p_pred);
         }
         mul(&mut self.nn_a, sys.f, &self.p_filt, n, n, n);
-        mul_bt(&mut self.p_pred, &self.nn_a, sys.f, n, n, n);
+        mul_bt_sym(&mut self.p_pred, &self.nn_a, sys.f, n, n);
         for (p, q) in self.p_pred.iter_mut().zip(sys.q) {
             *p += q;
         }
