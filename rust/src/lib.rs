@@ -15,7 +15,8 @@
 //! - [`filter`] / [`filter_into`] → [`FilterResult`]: the whole series; [`loglik`]: the
 //!   likelihood alone. [`Series`] wraps the row-major `(T, m)` data and `(T, k)` inputs.
 //! - [`KalmanFilter`]: the same filter one step at a time for streams.
-//! - [`UpdateForm`]: Joseph (default) or standard covariance update.
+//! - [`FilterOptions`]: the [`UpdateForm`] (Joseph, the default, or standard) and the optional
+//!   freezing of the gains once the covariance has converged (`converge_tol`).
 //! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances), [`smooth_fixed_lag`] and
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
 //! - [`filter_batch`]: many series through one model on all cores, the covariance recursion
