@@ -229,6 +229,7 @@ fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Res
             let (y, u, x0, p0) = series_parts(model, b, s);
             let mut ws = start(model, x0, p0);
             ws.want_gain_pred = false;
+            ws.want_gain = false;
             let run = Run { model, y, u, form: b.form };
             let mut o = FilterOutputs { x_filt: Some(x_out), p_filt: p_out, ..Default::default() };
             *ll = with_dims!(n, m, run.filter(&mut ws, &mut o)).map_err(|e| prefix_series(e, s))?;

@@ -182,6 +182,7 @@ pub fn filter_into(
     let mut ws = start(model, x0, p0);
     ws.converge_tol = check_converge_tol(model, options.converge_tol)?;
     ws.want_gain_pred = out.gain_pred.is_some();
+    ws.want_gain = out.gain.is_some();
     let run = Run { model, y, u, form: options.form };
     let total = with_dims!(n, m, run.filter(&mut ws, &mut out))?;
     if let Some(o) = out.x_next.as_deref_mut() {

@@ -115,6 +115,9 @@ pub(crate) struct Workspace {
     /// Whether to compute the predictor gain when the model has no N (it is then only an
     /// output; with N it enters the time update anyway).
     pub want_gain_pred: bool,
+    /// Whether to fill `gain` (the filter gain with zero columns for missing components): only
+    /// an output.
+    pub want_gain: bool,
     /// log det S of the last full update (used while frozen).
     log_det: f64,
     /// Components observed at this step, and how many (0 = no update).
@@ -160,6 +163,7 @@ impl Workspace {
             converge_tol: None,
             frozen: false,
             want_gain_pred: true,
+            want_gain: true,
             log_det: 0.0,
             obs: vec![0; m],
             m_obs: 0,
@@ -252,7 +256,9 @@ impl Workspace {
                 self.m_obs += 1;
             }
         }
-        self.gain.fill(0.0);
+        if self.want_gain {
+            self.gain.fill(0.0);
+        }
         if self.m_obs == 0 {
             self.x_filt.copy_from_slice(&self.x_pred);
             self.p_filt.copy_from_slice(&self.p_pred);
@@ -331,9 +337,11 @@ impl Workspace {
             }
         }
         symmetrize(&mut self.p_filt, n);
-        for (j, &i) in self.obs[..mo].iter().enumerate() {
-            for r in 0..n {
-                self.gain[r * m + i] = gain_t[j * n + r];
+        if self.want_gain {
+            for (j, &i) in self.obs[..mo].iter().enumerate() {
+                for r in 0..n {
+                    self.gain[r * m + i] = gain_t[j * n + r];
+                }
             }
         }
         Ok(())
