@@ -4,6 +4,12 @@
 
 mod model;
 mod solvers;
+
+/// The extension's own Rust allocations (faer's matrices in the solvers, workspaces) use
+/// mimalloc: small-matrix solvers spent about half their time in the system malloc/free.
+/// Only the Python extension sets it; Rust users of the crate keep their allocator.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 mod streaming;
 
 use numpy::ndarray::IxDyn;
