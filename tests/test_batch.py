@@ -86,3 +86,10 @@ def test_batch_bad_input():
         kfast.filter_batch(model, np.zeros((5, 3, 2)), x0, P0, threads=0)
     with pytest.raises(kfast.KfastError, match=r"^P0: \(series 0\) not positive semidefinite"):
         kfast.filter_batch(model, np.zeros((5, 3, 2)), x0, -np.eye(4))
+
+
+def test_scalar_model_accepts_scalars_and_2d_y():
+    model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+    Y = np.random.default_rng(2).standard_normal((3, 6))
+    res = kfast.filter_batch(model, Y, 0.0, 1.0)
+    np.testing.assert_array_equal(res.x_filt[1], model.filter(Y[1], 0.0, 1.0).x_filt)

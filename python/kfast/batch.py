@@ -61,6 +61,9 @@ def filter_batch(
     n = model.n_states
     x0 = as_float64("x0", x0)
     P0 = as_float64("P0", P0)
+    if n == 1:  # scalars for a scalar state, as in LinearGaussian.filter
+        x0 = x0.reshape(1) if x0.ndim == 0 else x0
+        P0 = P0.reshape(1, 1) if P0.ndim == 0 else P0
     if x0.ndim not in (1, 2):
         raise _kfast.KfastError(f"x0: expected shape ({n},) or (B, {n}), got {x0.shape}")
     if P0.ndim not in (2, 3):
