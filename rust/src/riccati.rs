@@ -211,8 +211,9 @@ fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
     let mut previous = f64::INFINITY;
     for it in 1..=100 {
         let w = Mat::<f64>::identity(n, n) + &gk * &hk;
-        let v1 = solve(&w, &ak);
-        let v2 = solve(&w, &gk);
+        let lu = w.partial_piv_lu(); // one factorization, two right-hand sides
+        let v1 = lu.solve(&ak);
+        let v2 = lu.solve(&gk);
         let a_next = &ak * &v1;
         let g_next = sym(&(&gk + &ak * &v2 * ak.transpose()));
         let h_next = sym(&(&hk + ak.transpose() * &hk * &v1));
