@@ -46,10 +46,6 @@ pub(crate) fn checked_mat(arg: &'static str, v: &[f64], rows: usize, cols: usize
     Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
 }
 
-fn check_square(arg: &'static str, a: &[f64], n: usize) -> Result<()> {
-    checked_mat(arg, a, n, n).map(|_| ())
-}
-
 /// X solving X = a X a' + q (SciPy's `solve_discrete_lyapunov(a, q)`).
 pub fn solve_discrete_lyapunov(a: &[f64], q: &[f64], n: usize) -> Result<Vec<f64>> {
     solve(a, q, n, Kind::Discrete)
@@ -63,9 +59,8 @@ pub fn solve_continuous_lyapunov(a: &[f64], q: &[f64], n: usize) -> Result<Vec<f
 /// The stationary state covariance Π = F Π F' + Q; an error unless F is stable (ρ(F) < 1),
 /// since otherwise no stationary covariance exists (Grewal & Andrews problems 4.27–4.28).
 pub fn stationary_covariance(f: &[f64], q: &[f64], n: usize) -> Result<Vec<f64>> {
-    check_square("F", f, n)?;
-    check_square("Q", q, n)?;
-    let schur = real_schur(&to_mat(f, n)).map_err(|p| Error::arg("F", p))?;
+    let (fm, qm) = (checked_mat("F", f, n, n)?, checked_mat("Q", q, n, n)?);
+    let schur = real_schur(&fm).map_err(|p| Error::arg("F", p))?;
     let rho = spectral_radius(&schur);
     if rho >= 1.0 - 1e-12 {
         return Err(Error::arg(
@@ -73,7 +68,7 @@ pub fn stationary_covariance(f: &[f64], q: &[f64], n: usize) -> Result<Vec<f64>>
             format!("is not stable (spectral radius {rho:.6}): the state has no stationary covariance"),
         ));
     }
-    solve_with_schur(&schur, q, n, Kind::Discrete)
+    solve_with_schur(&schur, &qm, q, Kind::Discrete)
 }
 
 pub(crate) fn spectral_radius(schur: &RealSchur) -> f64 {
@@ -81,15 +76,16 @@ pub(crate) fn spectral_radius(schur: &RealSchur) -> f64 {
 }
 
 fn solve(a: &[f64], q: &[f64], n: usize, kind: Kind) -> Result<Vec<f64>> {
-    check_square("a", a, n)?;
-    check_square("q", q, n)?;
-    let schur = real_schur(&to_mat(a, n)).map_err(|p| Error::arg("a", p))?;
-    solve_with_schur(&schur, q, n, kind)
+    let (am, qm) = (checked_mat("a", a, n, n)?, checked_mat("q", q, n, n)?);
+    let schur = real_schur(&am).map_err(|p| Error::arg("a", p))?;
+    solve_with_schur(&schur, &qm, q, kind)
 }
 
-fn solve_with_schur(schur: &RealSchur, q: &[f64], n: usize, kind: Kind) -> Result<Vec<f64>> {
+/// `q` is the right-hand side as a matrix (`qm`) and row-major (to test its symmetry).
+fn solve_with_schur(schur: &RealSchur, qm: &Mat<f64>, q: &[f64], kind: Kind) -> Result<Vec<f64>> {
     let (t, z) = (&schur.t, &schur.z);
-    let c = z.transpose() * to_mat(q, n) * z;
+    let n = t.nrows();
+    let c = z.transpose() * qm * z;
     let blocks = schur.blocks();
     let mut y = Mat::<f64>::zeros(n, n);
     for &(j0, qj) in blocks.iter().rev() {

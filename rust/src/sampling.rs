@@ -87,11 +87,23 @@ pub struct Discretized {
     pub bd: Vec<f64>,
 }
 
-/// Van Loan discretization of (A, Qc, B) over `dt` (ALGORITHMS.md §8a).
-pub fn discretize(a: &[f64], qc: &[f64], b: Option<&[f64]>, n: usize, k: usize, dt: f64) -> Result<Discretized> {
+/// (A, Qc, B) as faer matrices after checking shapes, finiteness and the symmetry of Qc.
+#[allow(clippy::type_complexity)]
+fn continuous_model(
+    a: &[f64],
+    qc: &[f64],
+    b: Option<&[f64]>,
+    n: usize,
+    k: usize,
+) -> Result<(Mat<f64>, Mat<f64>, Option<Mat<f64>>)> {
     let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
     crate::model::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
-    let bm = b.map(|b| checked_mat("B", b, n, k)).transpose()?;
+    Ok((am, qm, b.map(|b| checked_mat("B", b, n, k)).transpose()?))
+}
+
+/// Van Loan discretization of (A, Qc, B) over `dt` (ALGORITHMS.md §8a).
+pub fn discretize(a: &[f64], qc: &[f64], b: Option<&[f64]>, n: usize, k: usize, dt: f64) -> Result<Discretized> {
+    let (am, qm, bm) = continuous_model(a, qc, b, n, k)?;
     if !(dt > 0.0 && dt.is_finite()) {
         return Err(Error::arg("dt", format!("must be positive and finite, got {dt}")));
     }
@@ -146,9 +158,7 @@ pub fn discretize_steps(
     k: usize,
     dts: &[f64],
 ) -> Result<Discretized> {
-    let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
-    crate::model::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
-    let bm = b.map(|b| checked_mat("B", b, n, k)).transpose()?;
+    let (am, qm, bm) = continuous_model(a, qc, b, n, k)?;
     if let Some((t, dt)) = dts.iter().enumerate().find(|(_, dt)| !(**dt > 0.0 && dt.is_finite())) {
         return Err(Error::arg_at("dt", t, format!("must be positive and finite, got {dt}")));
     }

@@ -94,17 +94,17 @@ fn parse_form(form: &str) -> PyResult<UpdateForm> {
     }
 }
 
+/// A 2-D float64 array as a [`Series`] (`arg` names it in errors).
+fn series_of<'a>(arg: &'static str, a: &'a PyReadonlyArrayDyn<'_, f64>) -> PyResult<Series<'a>> {
+    Ok(Series::new(arg, data(arg, a, 2)?, a.shape()[0], a.shape()[1])?)
+}
+
 /// `y` (T, m) and `u` (T, k) as [`Series`].
 fn series<'a>(
     y: &'a PyReadonlyArrayDyn<'_, f64>,
     u: Option<&'a PyReadonlyArrayDyn<'_, f64>>,
 ) -> PyResult<(Series<'a>, Option<Series<'a>>)> {
-    let ys = Series::new("y", data("y", y, 2)?, y.shape()[0], y.shape()[1])?;
-    let us = match u {
-        Some(u) => Some(Series::new("u", data("u", u, 2)?, u.shape()[0], u.shape()[1])?),
-        None => None,
-    };
-    Ok((ys, us))
+    Ok((series_of("y", y)?, u.map(|u| series_of("u", u)).transpose()?))
 }
 
 /// A vector argument as a float64 array: float64 contiguous 1-D arrays are read in place,

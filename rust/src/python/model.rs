@@ -6,8 +6,10 @@ use numpy::{PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::{data, filter_outputs, non_negative, parse_form, prior, series, to_array, KfastError, OutArrays};
-use crate::filter::{self, FilterOptions, Series};
+use super::{
+    data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError, OutArrays,
+};
+use crate::filter::{self, FilterOptions};
 use crate::model::{self, Matrices, StepMatrix};
 use crate::smoother::{self, FilteredView, SmootherOutputs};
 
@@ -233,10 +235,7 @@ impl PyLinearGaussian {
         let (n, m) = (self.inner.n_states(), self.inner.n_obs());
         let x = data("x", &x, 1)?;
         let p = data("P", &P, 2)?;
-        let u = match &u {
-            Some(u) => Some(Series::new("u", data("u", u, 2)?, u.shape()[0], u.shape()[1])?),
-            None => None,
-        };
+        let u = u.as_ref().map(|u| series_of("u", u)).transpose()?;
         let model = &*self.inner;
         let fc = py.detach(|| crate::forecast(model, x, p, steps, u))?;
         let dict = PyDict::new(py);
@@ -259,12 +258,8 @@ impl PyLinearGaussian {
     ) -> PyResult<(OutArray<'py>, OutArray<'py>)> {
         let (n, m) = (self.inner.n_states(), self.inner.n_obs());
         let x_init = data("x_init", &x_init, 1)?;
-        let ws = Series::new("w", data("w", &w, 2)?, w.shape()[0], w.shape()[1])?;
-        let vs = Series::new("v", data("v", &v, 2)?, v.shape()[0], v.shape()[1])?;
-        let us = match &u {
-            Some(u) => Some(Series::new("u", data("u", u, 2)?, u.shape()[0], u.shape()[1])?),
-            None => None,
-        };
+        let (ws, vs) = (series_of("w", &w)?, series_of("v", &v)?);
+        let us = u.as_ref().map(|u| series_of("u", u)).transpose()?;
         let model = &*self.inner;
         let (xs, ys) = py.detach(|| crate::propagate(model, x_init, ws, vs, us))?;
         let steps = ws.steps();
