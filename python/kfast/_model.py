@@ -363,11 +363,7 @@ class LinearGaussian:
         Unpacks as ``mean, cov = model.forecast(...)``.
         """
         steps = _index("steps", steps)
-        x = as_float64("x", x)
-        P = as_float64("P", P)
-        if self.n_states == 1:
-            x = x.reshape(1) if x.size == 1 else x
-            P = P.reshape(1, 1) if P.size == 1 else P
+        x, P = self._prior(x, P, names=("x", "P"))
         if u is not None:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
         return Forecast(**self._core.forecast(x, P, steps, u=u))
@@ -420,14 +416,18 @@ class LinearGaussian:
 
     def _data(self, y, x0, P0, u):
         y = _column_if_1d(as_float64("y", y), self.n_obs)
-        x0 = as_float64("x0", x0)
-        P0 = as_float64("P0", P0)
-        if self.n_states == 1:
-            x0 = x0.reshape(1) if x0.size == 1 else x0
-            P0 = P0.reshape(1, 1) if P0.size == 1 else P0
+        x0, P0 = self._prior(x0, P0)
         if u is not None:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
         return y, x0, P0, u
+
+    def _prior(self, x, P, names=("x0", "P0")):
+        """A mean and covariance as float64; scalars (size 1) for a scalar state."""
+        x, P = as_float64(names[0], x), as_float64(names[1], P)
+        if self.n_states == 1:
+            x = x.reshape(1) if x.size == 1 else x
+            P = P.reshape(1, 1) if P.size == 1 else P
+        return x, P
 
 
 def _psd_sqrt(C: np.ndarray) -> np.ndarray:

@@ -193,13 +193,11 @@ def em(
         raise KfastError("model: EM does not support correlated noise N")
     if isinstance(n_iter, bool) or not isinstance(n_iter, (int, np.integer)) or n_iter < 0:
         raise KfastError(f"n_iter: expected an integer >= 0, got {n_iter!r}")
-    y = as_float64("y", y)
-    y = y[:, None] if y.ndim == 1 and model.n_obs == 1 else y
-    u = None if u is None else as_float64("u", u)
+    y, x0, P0, u = model._data(y, x0, P0, u)
     F, H, Q, R = (np.array(a) for a in (model.F, model.H, model.Q, model.R))
     B, D = model.B, model.D
-    x0 = np.array(as_float64("x0", x0), dtype=float).reshape(model.n_states)
-    P0 = np.array(as_float64("P0", P0), dtype=float).reshape(model.n_states, model.n_states)
+    x0 = np.array(x0, dtype=float).reshape(model.n_states)  # copies: EM updates them
+    P0 = np.array(P0, dtype=float).reshape(model.n_states, model.n_states)
     T = len(y)
     a = np.zeros((T, model.n_states)) if B is None else u @ B.T  # transition offsets B u(t)
     d = np.zeros((T, model.n_obs)) if D is None else u @ D.T  # observation offsets D u(t)
