@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::filter::step::Dims;
-use crate::filter::{check_data, start, with_dims, FilterOutputs, Run, Series, UpdateForm, Workspace};
+use crate::filter::{check_data, check_series, start, with_dims, FilterOutputs, Run, Series, UpdateForm, Workspace};
 use crate::model::LinearGaussian;
 
 /// Series `(B, T, m)`, inputs, priors and options of a batch.
@@ -96,10 +96,16 @@ fn check_batch(model: &LinearGaussian, b: &Batch<'_>, out: &BatchOutputs<'_>, sh
             return Err(Error::arg("u", format!("expected {want} values, got {}", u.len())));
         }
     }
-    // Validate each series as the single-series filter would (data, inputs, prior).
+    // Validate each series as the single-series filter would; a shared prior only once.
+    let shared_prior = b.x0.len() == n && b.p0.len() == n * n;
     for s in 0..bs {
         let (y, u, x0, p0) = series_parts(model, b, s);
-        check_data(model, y, u, x0, p0).map_err(|e| prefix_series(e, s))?;
+        let checked = if shared_prior && s > 0 {
+            check_series(model, y, u).map(|_| ())
+        } else {
+            check_data(model, y, u, x0, p0).map(|_| ())
+        };
+        checked.map_err(|e| prefix_series(e, s))?;
     }
     let covs = if shared { t * n * n } else { bs * t * n * n };
     for (arg, got, want) in [

@@ -350,7 +350,13 @@ pub(crate) fn check_data(
     x0: &[f64],
     p0: &[f64],
 ) -> Result<usize> {
-    let (n, m, steps) = (model.n_states(), model.n_obs(), y.steps());
+    let steps = check_series(model, y, u)?;
+    check_prior(model.n_states(), x0, p0).map(|_| steps)
+}
+
+/// Validates the data and inputs of one series against the model; returns T.
+pub(crate) fn check_series(model: &LinearGaussian, y: Series<'_>, u: Option<Series<'_>>) -> Result<usize> {
+    let (m, steps) = (model.n_obs(), y.steps());
     if y.width != m {
         return Err(Error::arg("y", format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width)));
     }
@@ -366,7 +372,7 @@ pub(crate) fn check_data(
         check_observation(y.row(t), Some(t))?;
     }
     check_input_series(model, u, steps)?;
-    check_prior(n, x0, p0).map(|_| steps)
+    Ok(steps)
 }
 
 /// `y[t]` may hold NaN (missing) but not ±inf.
