@@ -6,6 +6,7 @@
 //! missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
 //! The recursion is Söderström Lemma 6.1 / (6.24) (see [`step`] for the equations).
 
+mod fixed;
 pub(crate) mod step;
 
 use std::sync::Arc;
@@ -115,7 +116,7 @@ pub struct FilterOutputs<'a> {
 }
 
 impl FilterResult {
-    fn zeros(steps: usize, n: usize, m: usize) -> Self {
+    pub(crate) fn zeros(steps: usize, n: usize, m: usize) -> Self {
         let z = |len: usize| vec![0.0; len];
         FilterResult {
             x_pred: z(steps * n),
@@ -133,7 +134,7 @@ impl FilterResult {
         }
     }
 
-    fn outputs(&mut self) -> FilterOutputs<'_> {
+    pub(crate) fn outputs(&mut self) -> FilterOutputs<'_> {
         FilterOutputs {
             x_pred: Some(&mut self.x_pred),
             p_pred: Some(&mut self.p_pred),
@@ -280,22 +281,64 @@ impl Run<'_> {
 
     #[inline(always)]
     fn filter_loop<D: Dims>(&self, d: D, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Result<f64> {
-        let (n, m) = (d.n(), d.m());
+        if let Some(total) = d.filter_fixed(self, ws, out) {
+            return total;
+        }
         let mut total = 0.0;
         for t in 0..self.y.steps() {
-            store(&mut out.x_pred, t, &ws.x_pred);
-            store(&mut out.p_pred, t, &ws.p_pred);
+            StepStore::prior(out, t, &ws.x_pred, &ws.p_pred);
             self.advance(d, ws, t)?;
             total += ws.loglik_t;
-            store(&mut out.x_filt, t, &ws.x_filt[..n]);
-            store(&mut out.p_filt, t, &ws.p_filt[..n * n]);
-            store(&mut out.innov, t, &ws.innov[..m]);
-            store(&mut out.innovation_cov, t, &ws.s_full[..m * m]);
-            store(&mut out.gain, t, &ws.gain[..n * m]);
-            store(&mut out.gain_pred, t, &ws.gain_pred[..n * m]);
-            store(&mut out.loglik_t, t, &[ws.loglik_t]);
+            StepStore::of(ws).save(out, t);
         }
         Ok(total)
+    }
+}
+
+/// One step's filtered outputs, for the rows of the optional output buffers.
+pub(crate) struct StepStore<'a> {
+    pub x_filt: &'a [f64],
+    pub p_filt: &'a [f64],
+    pub innov: &'a [f64],
+    pub innovation_cov: &'a [f64],
+    pub gain: &'a [f64],
+    pub gain_pred: &'a [f64],
+    pub loglik_t: f64,
+}
+
+impl<'a> StepStore<'a> {
+    /// The outputs of the step the workspace has just made.
+    #[inline(always)]
+    pub fn of(ws: &'a Workspace) -> Self {
+        let (n, m) = (ws.n, ws.m);
+        StepStore {
+            x_filt: &ws.x_filt[..n],
+            p_filt: &ws.p_filt[..n * n],
+            innov: &ws.innov[..m],
+            innovation_cov: &ws.s_full[..m * m],
+            gain: &ws.gain[..n * m],
+            gain_pred: &ws.gain_pred[..n * m],
+            loglik_t: ws.loglik_t,
+        }
+    }
+
+    /// Stores x̂(t|t−1), P(t|t−1) (before the step).
+    #[inline(always)]
+    pub fn prior(out: &mut FilterOutputs<'_>, t: usize, x_pred: &[f64], p_pred: &[f64]) {
+        store(&mut out.x_pred, t, x_pred);
+        store(&mut out.p_pred, t, p_pred);
+    }
+
+    /// Stores the step's filtered outputs in row t.
+    #[inline(always)]
+    pub fn save(&self, out: &mut FilterOutputs<'_>, t: usize) {
+        store(&mut out.x_filt, t, self.x_filt);
+        store(&mut out.p_filt, t, self.p_filt);
+        store(&mut out.innov, t, self.innov);
+        store(&mut out.innovation_cov, t, self.innovation_cov);
+        store(&mut out.gain, t, self.gain);
+        store(&mut out.gain_pred, t, self.gain_pred);
+        store(&mut out.loglik_t, t, &[self.loglik_t]);
     }
 }
 

@@ -22,6 +22,8 @@ use crate::dense::{
 use crate::error::{Error, Result};
 use crate::model::StepView;
 
+use super::{FilterOutputs, Run};
+
 /// How the filtered covariance `P(t|t)` is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum UpdateForm {
@@ -33,12 +35,12 @@ pub enum UpdateForm {
     Standard,
 }
 
-const LN_2PI: f64 = 1.837_877_066_409_345_5;
+pub(crate) const LN_2PI: f64 = 1.837_877_066_409_345_5;
 
 /// log det S = 2 Σ ln L_ii, with one logarithm of the product when it is a normal number
 /// (the common case; `ln` dominates a small step otherwise).
 #[inline(always)]
-fn log_det_from_cholesky(chol: &[f64], mo: usize) -> f64 {
+pub(crate) fn log_det_from_cholesky(chol: &[f64], mo: usize) -> f64 {
     let prod: f64 = (0..mo).map(|i| chol[i * mo + i]).product();
     if prod.is_normal() {
         2.0 * prod.ln()
@@ -53,6 +55,13 @@ fn log_det_from_cholesky(chol: &[f64], mo: usize) -> f64 {
 pub(crate) trait Dims: Copy {
     fn n(self) -> usize;
     fn m(self) -> usize;
+
+    /// The filter loop on local fixed-size arrays ([`super::fixed`]) when the sizes are
+    /// compile-time ones and the model allows it; `None` runs the general loop.
+    #[inline(always)]
+    fn filter_fixed(self, _run: &Run<'_>, _ws: &mut Workspace, _out: &mut FilterOutputs<'_>) -> Option<Result<f64>> {
+        None
+    }
 }
 
 /// Sizes known at run time.
@@ -85,6 +94,10 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
     #[inline(always)]
     fn m(self) -> usize {
         M
+    }
+    #[inline(always)]
+    fn filter_fixed(self, run: &Run<'_>, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Option<Result<f64>> {
+        run.filter_fixed::<N, M>(ws, out)
     }
 }
 
