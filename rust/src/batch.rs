@@ -153,10 +153,10 @@ fn series_parts<'a>(
     (y, u, x0, p0)
 }
 
-/// The data-independent covariance recursion, once: per step P H', chol S, log det S, P(t|t).
+/// The data-independent covariance recursion, once: per step P H', s_factor S, log det S, P(t|t).
 struct SharedGains {
     pht: Vec<f64>,
-    chol: Vec<f64>,
+    s_factor: Vec<f64>,
     log_det: Vec<f64>,
     p_filt: Vec<f64>,
 }
@@ -168,7 +168,7 @@ fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
     let zeros_u = vec![0.0; model.n_inputs()];
     let mut g = SharedGains {
         pht: Vec::with_capacity(t * n * m),
-        chol: Vec::with_capacity(t * m * m),
+        s_factor: Vec::with_capacity(t * m * m),
         log_det: Vec::with_capacity(t),
         p_filt: Vec::with_capacity(t * n * n),
     };
@@ -176,9 +176,9 @@ fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
     for step in 0..t {
         let sys = model.at(step);
         ws.update(ws.dims(), &sys, &zeros, u, b.form, step)?;
-        let (pht, chol, log_det) = ws.gains();
+        let (pht, s_factor, log_det) = ws.gains();
         g.pht.extend_from_slice(pht);
-        g.chol.extend_from_slice(chol);
+        g.s_factor.extend_from_slice(s_factor);
         g.log_det.push(log_det);
         g.p_filt.extend_from_slice(&ws.p_filt);
         ws.predict(ws.dims(), &sys, u);
@@ -213,7 +213,12 @@ impl Run<'_> {
         for t in 0..self.y.steps() {
             let sys = self.model.at(t);
             let u_t = self.u.map(|u| u.row(t));
-            ws.load_gains(&g.pht[t * n * m..(t + 1) * n * m], &g.chol[t * m * m..(t + 1) * m * m], g.log_det[t], sys.n);
+            ws.load_gains(
+                &g.pht[t * n * m..(t + 1) * n * m],
+                &g.s_factor[t * m * m..(t + 1) * m * m],
+                g.log_det[t],
+                sys.n,
+            );
             // Never fails: the data are complete and the gains were computed already.
             let _ = ws.update(d, &sys, self.y.row(t), u_t, self.form, t);
             ws.predict(d, &sys, u_t);

@@ -154,6 +154,110 @@ pub(crate) fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
     Ok(())
 }
 
+/// Square-root-free Cholesky factorization `a = L D L'` in place (Golub & Van Loan, *Matrix
+/// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
+/// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
+/// it was). A symmetric `a` is positive definite iff every `d_j > 0`; on failure returns the
+/// first `j` that is not (or not finite). Used for the innovation covariance S: with no square
+/// roots its latency is one division per pivot, which bounds a small filter step.
+#[inline(always)]
+pub(crate) fn ldl(a: &mut [f64], n: usize) -> Result<(), usize> {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for l in 0..j {
+            d -= a[j * n + l] * (a[j * n + l] * a[l * n + l]);
+        }
+        // NaN fails `d > 0`.
+        let positive = d > 0.0 && d.is_finite();
+        if !positive {
+            return Err(j);
+        }
+        a[j * n + j] = d;
+        let inv = 1.0 / d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for l in 0..j {
+                s -= a[i * n + l] * (a[j * n + l] * a[l * n + l]);
+            }
+            a[i * n + j] = s * inv;
+        }
+    }
+    Ok(())
+}
+
+/// `ln det(L D L') = ln Π d_j` from an [`ldl`] factor, with one logarithm of the product when
+/// it is a normal number (the common case; `ln` is a large part of a small step otherwise).
+#[inline(always)]
+pub(crate) fn ldl_log_det(f: &[f64], n: usize) -> f64 {
+    let prod: f64 = (0..n).map(|i| f[i * n + i]).product();
+    if prod.is_normal() {
+        prod.ln()
+    } else {
+        (0..n).map(|i| f[i * n + i].ln()).sum()
+    }
+}
+
+/// Solves `S X = B` in place for `b[n×r]`, with `S = L D L'` given by its [`ldl`] factor `f`.
+#[inline(always)]
+pub(crate) fn ldl_solve(f: &[f64], b: &mut [f64], n: usize, r: usize) {
+    solve_unit_lower(f, b, n, r);
+    scale_by_inv_diag(f, b, n, r);
+    solve_unit_lower_t(f, b, n, r);
+}
+
+/// For a vector `b[n]`: replaces it by `S⁻¹ b` and returns `b' S⁻¹ b = Σ w_j² / d_j` with
+/// `w = L⁻¹ b` (a sum of nonnegative terms), for the [`ldl`] factor `f` of S.
+#[inline(always)]
+pub(crate) fn ldl_solve_quad(f: &[f64], b: &mut [f64], n: usize) -> f64 {
+    solve_unit_lower(f, b, n, 1);
+    let mut quad = 0.0;
+    for (i, bi) in b.iter_mut().enumerate() {
+        let w = *bi;
+        *bi = w * (1.0 / f[i * n + i]);
+        quad += w * *bi;
+    }
+    solve_unit_lower_t(f, b, n, 1);
+    quad
+}
+
+/// Solves `L X = B` in place for `b[n×r]`, `L` unit lower triangular (strict lower triangle
+/// of `l[n×n]`).
+#[inline(always)]
+fn solve_unit_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+    for i in 1..n {
+        for j in 0..i {
+            let lij = l[i * n + j];
+            for c in 0..r {
+                b[i * r + c] -= lij * b[j * r + c];
+            }
+        }
+    }
+}
+
+/// Solves `L' X = B` in place for `b[n×r]`, `L` unit lower triangular.
+#[inline(always)]
+fn solve_unit_lower_t(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+    for i in (0..n).rev() {
+        for j in i + 1..n {
+            let lji = l[j * n + i];
+            for c in 0..r {
+                b[i * r + c] -= lji * b[j * r + c];
+            }
+        }
+    }
+}
+
+/// Row i of `b[n×r]` times `1 / l[i][i]`.
+#[inline(always)]
+fn scale_by_inv_diag(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+    for i in 0..n {
+        let inv = 1.0 / l[i * n + i];
+        for c in 0..r {
+            b[i * r + c] *= inv;
+        }
+    }
+}
+
 /// Solves `L X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
 #[inline(always)]
 pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
@@ -209,6 +313,34 @@ mod tests {
         for (b, want) in back.iter().zip([1.0, 2.0, 3.0]) {
             assert!((b - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn ldl_solves_a_spd_system() {
+        let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
+        let mut f = a;
+        ldl(&mut f, 3).unwrap();
+        let b = [1.0, 2.0, 3.0];
+        let mut x = b;
+        let quad = ldl_solve_quad(&f, &mut x, 3);
+        let mut back = [0.0; 3];
+        mul_vec(&mut back, &a, &x, 3, 3);
+        for (got, want) in back.iter().zip(b) {
+            assert!((got - want).abs() < 1e-12);
+        }
+        let want_quad: f64 = b.iter().zip(&x).map(|(p, q)| p * q).sum();
+        assert!((quad - want_quad).abs() < 1e-12);
+        let mut cols = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0]; // 3 × 2
+        ldl_solve(&f, &mut cols, 3, 2);
+        let mut first = [cols[0], cols[2], cols[4]];
+        let mut back = [0.0; 3];
+        mul_vec(&mut back, &a, &first, 3, 3);
+        first = back;
+        assert!((first[0] - 1.0).abs() < 1e-12 && first[1].abs() < 1e-12 && first[2].abs() < 1e-12);
+        // det = 4 (15 − 1) − 2 (6 − 0.4) + 0.4 (2 − 2) = 44.8
+        assert!((ldl_log_det(&f, 3) - 44.8f64.ln()).abs() < 1e-12);
+        let mut indefinite = [1.0, 2.0, 2.0, 1.0];
+        assert_eq!(ldl(&mut indefinite, 2), Err(1));
     }
 
     #[test]

@@ -15,9 +15,11 @@
 //! Used for constant models without N and without `converge_tol`; everything else runs the
 //! general loop.
 
-use super::step::{log_det_from_cholesky, UpdateForm, Workspace, LN_2PI};
+use super::step::{UpdateForm, Workspace, LN_2PI};
 use super::{FilterOutputs, Run, StepStore};
-use crate::dense::{cholesky, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, solve_lower, solve_lower_t};
+use crate::dense::{
+    ldl, ldl_log_det, ldl_solve, ldl_solve_quad, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add,
+};
 use crate::dense::{symmetrize, transpose};
 use crate::error::Result;
 use crate::filter::step::Fixed;
@@ -51,7 +53,7 @@ struct Local<const N: usize, const M: usize> {
     innov: [f64; M],
     s_full: [[f64; M]; M],
     pht: [[f64; M]; N],
-    chol: [[f64; M]; M],
+    s_factor: [[f64; M]; M],
     s_inv_e: [f64; M],
     gain_t: [[f64; N]; M],
     gain: [[f64; M]; N],
@@ -71,7 +73,7 @@ impl<const N: usize, const M: usize> Local<N, M> {
             innov: zm,
             s_full: zmm,
             pht: znm,
-            chol: zmm,
+            s_factor: zmm,
             s_inv_e: zm,
             gain_t: zmn,
             gain: znm,
@@ -122,23 +124,19 @@ impl<const N: usize, const M: usize> Local<N, M> {
         }
         symmetrize(self.s_full.as_flattened_mut(), m);
 
-        self.chol = self.s_full;
-        let chol = self.chol.as_flattened_mut();
-        if cholesky(chol, m).is_err() {
+        self.s_factor = self.s_full;
+        if ldl(self.s_factor.as_flattened_mut(), m).is_err() {
             return false;
         }
-        let chol = self.chol.as_flattened();
-        let log_det = log_det_from_cholesky(chol, m);
+        let s_factor = self.s_factor.as_flattened();
+        let log_det = ldl_log_det(s_factor, m);
         self.s_inv_e = self.innov;
-        solve_lower(chol, &mut self.s_inv_e, m, 1);
-        let quad: f64 = self.s_inv_e.iter().map(|w| w * w).sum();
-        solve_lower_t(chol, &mut self.s_inv_e, m, 1);
+        let quad = ldl_solve_quad(s_factor, &mut self.s_inv_e, m);
         self.loglik_t = -0.5 * (m as f64 * LN_2PI + log_det + quad);
 
         let gain_t = self.gain_t.as_flattened_mut();
         transpose(gain_t, self.pht.as_flattened(), n, m);
-        solve_lower(chol, gain_t, m, n);
-        solve_lower_t(chol, gain_t, m, n);
+        ldl_solve(s_factor, gain_t, m, n);
         let gain_t = self.gain_t.as_flattened();
 
         self.x_filt = self.x_pred;

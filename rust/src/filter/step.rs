@@ -17,7 +17,8 @@
 //! N); a step with nothing observed skips the update and its time update has no N term.
 
 use crate::dense::{
-    cholesky, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose,
+    ldl, ldl_log_det, ldl_solve, ldl_solve_quad, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, symmetrize,
+    transpose,
 };
 use crate::error::{Error, Result};
 use crate::model::StepView;
@@ -36,18 +37,6 @@ pub enum UpdateForm {
 }
 
 pub(crate) const LN_2PI: f64 = 1.837_877_066_409_345_5;
-
-/// log det S = 2 Σ ln L_ii, with one logarithm of the product when it is a normal number
-/// (the common case; `ln` dominates a small step otherwise).
-#[inline(always)]
-pub(crate) fn log_det_from_cholesky(chol: &[f64], mo: usize) -> f64 {
-    let prod: f64 = (0..mo).map(|i| chol[i * mo + i]).product();
-    if prod.is_normal() {
-        2.0 * prod.ln()
-    } else {
-        (0..mo).map(|i| 2.0 * chol[i * mo + i].ln()).sum()
-    }
-}
 
 /// The state and output sizes (n, m) of a step. [`Fixed`] makes them compile-time constants so
 /// that the small dense loops are unrolled for the common sizes (chosen once per call by the
@@ -140,7 +129,7 @@ pub(crate) struct Workspace {
     // H_o, R_o, N_o, K_o' (m_obs × n), e_o, S_o⁻¹ e_o.
     pht_full: Vec<f64>,
     pht: Vec<f64>,
-    pub chol: Vec<f64>,
+    pub s_factor: Vec<f64>,
     pub h_o: Vec<f64>,
     r_o: Vec<f64>,
     n_o: Vec<f64>,
@@ -182,7 +171,7 @@ impl Workspace {
             m_obs: 0,
             pht_full: z(n * m),
             pht: z(n * m),
-            chol: z(m * m),
+            s_factor: z(m * m),
             h_o: z(m * n),
             r_o: z(m * m),
             n_o: z(n * m),
@@ -201,16 +190,16 @@ impl Workspace {
     /// The data-independent part of the last fully observed update: P H' (n × m), the
     /// Cholesky factor of S (m × m) and log det S.
     pub fn gains(&self) -> (&[f64], &[f64], f64) {
-        (&self.pht[..self.n * self.m], &self.chol[..self.m * self.m], self.log_det)
+        (&self.pht[..self.n * self.m], &self.s_factor[..self.m * self.m], self.log_det)
     }
 
     /// Loads gains recorded by [`gains`](Self::gains) (and N at that step) and freezes the
     /// covariance recursion: the next fully observed update and time update then move only
     /// the state, with exactly the operations of the full recursion.
-    pub fn load_gains(&mut self, pht: &[f64], chol: &[f64], log_det: f64, n_mat: Option<&[f64]>) {
+    pub fn load_gains(&mut self, pht: &[f64], s_factor: &[f64], log_det: f64, n_mat: Option<&[f64]>) {
         let (n, m) = (self.n, self.m);
         self.pht[..n * m].copy_from_slice(pht);
-        self.chol[..m * m].copy_from_slice(chol);
+        self.s_factor[..m * m].copy_from_slice(s_factor);
         self.log_det = log_det;
         if let Some(nn) = n_mat {
             self.n_o[..n * m].copy_from_slice(nn);
@@ -291,30 +280,26 @@ impl Workspace {
     #[inline(always)]
     fn update_observed<D: Dims>(&mut self, d: D, mo: usize, form: UpdateForm, t: usize) -> Result<()> {
         let (n, m) = (d.n(), d.m());
-        cholesky(&mut self.chol[..mo * mo], mo).map_err(|j| Error::InnovationCovariance {
+        ldl(&mut self.s_factor[..mo * mo], mo).map_err(|j| Error::InnovationCovariance {
             step: t,
             problem: format!(
                 "not positive definite (pivot {j} of the {mo} observed components fails); \
                  R may be singular where H P H' is too"
             ),
         })?;
-        let chol = &self.chol[..mo * mo];
-        let log_det = log_det_from_cholesky(chol, mo);
+        let s_factor = &self.s_factor[..mo * mo];
+        let log_det = ldl_log_det(s_factor, mo);
         self.log_det = log_det;
-        // w = L⁻¹ e gives e' S⁻¹ e = ‖w‖²; then L'⁻¹ w = S⁻¹ e.
         let s_inv_e = &mut self.s_inv_e[..mo];
         s_inv_e.copy_from_slice(&self.e_o[..mo]);
-        solve_lower(chol, s_inv_e, mo, 1);
-        let quad: f64 = s_inv_e.iter().map(|w| w * w).sum();
-        solve_lower_t(chol, s_inv_e, mo, 1);
+        let quad = ldl_solve_quad(s_factor, s_inv_e, mo);
         self.loglik_t = -0.5 * (mo as f64 * LN_2PI + log_det + quad);
 
-        // K' = S⁻¹ (P H')' by two triangular solves (never S⁻¹ itself).
+        // K' = S⁻¹ (P H')' by solves with the factor of S (never S⁻¹ itself).
         let pht = &self.pht[..n * mo];
         let gain_t = &mut self.gain_t[..mo * n];
         transpose(gain_t, pht, n, mo);
-        solve_lower(chol, gain_t, mo, n);
-        solve_lower_t(chol, gain_t, mo, n);
+        ldl_solve(s_factor, gain_t, mo, n);
 
         // x̂(t|t) = x̂(t|t−1) + P H' S⁻¹ e
         self.x_filt.copy_from_slice(&self.x_pred);
@@ -366,12 +351,9 @@ impl Workspace {
     fn update_frozen<D: Dims>(&mut self, d: D) {
         let (n, m) = (d.n(), d.m());
         self.e_o[..m].copy_from_slice(&self.innov);
-        let chol = &self.chol[..m * m];
         let s_inv_e = &mut self.s_inv_e[..m];
         s_inv_e.copy_from_slice(&self.innov);
-        solve_lower(chol, s_inv_e, m, 1);
-        let quad: f64 = s_inv_e.iter().map(|w| w * w).sum();
-        solve_lower_t(chol, s_inv_e, m, 1);
+        let quad = ldl_solve_quad(&self.s_factor[..m * m], s_inv_e, m);
         self.loglik_t = -0.5 * (m as f64 * LN_2PI + self.log_det + quad);
         self.x_filt.copy_from_slice(&self.x_pred);
         mul_vec_add(&mut self.x_filt, &self.pht[..n * m], s_inv_e, n, m);
@@ -384,7 +366,7 @@ impl Workspace {
         if mo == m {
             self.e_o[..m].copy_from_slice(&self.innov[..m]);
             self.h_o[..m * n].copy_from_slice(&sys.h[..m * n]);
-            self.chol[..m * m].copy_from_slice(&self.s_full[..m * m]);
+            self.s_factor[..m * m].copy_from_slice(&self.s_full[..m * m]);
             self.r_o[..m * m].copy_from_slice(&sys.r[..m * m]);
             self.pht[..n * m].copy_from_slice(&self.pht_full[..n * m]);
             if let Some(nn) = sys.n {
@@ -397,7 +379,7 @@ impl Workspace {
             self.e_o[a] = self.innov[i];
             self.h_o[a * n..(a + 1) * n].copy_from_slice(&sys.h[i * n..(i + 1) * n]);
             for (b, &j) in obs.iter().enumerate() {
-                self.chol[a * mo + b] = self.s_full[i * m + j];
+                self.s_factor[a * mo + b] = self.s_full[i * m + j];
                 self.r_o[a * mo + b] = sys.r[i * m + j];
             }
         }
@@ -481,9 +463,7 @@ impl Workspace {
             // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
             let g_t = &mut self.mn_a[..mo * n];
             transpose(g_t, n_o, n, mo);
-            let chol = &self.chol[..mo * mo];
-            solve_lower(chol, g_t, mo, n);
-            solve_lower_t(chol, g_t, mo, n);
+            ldl_solve(&self.s_factor[..mo * mo], g_t, mo, n);
             // P(t+1|t) −= K_pred N' + N (F K)'
             for r in 0..n {
                 for c in 0..n {

@@ -14,7 +14,7 @@
 //! With N ≠ 0 only K_pred changes (it includes N), and missing components drop out of H, S
 //! and e exactly as in the filter.
 
-use crate::dense::{mul, mul_bt, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose};
+use crate::dense::{ldl_solve, mul, mul_bt, mul_vec_add, symmetrize, transpose};
 use crate::filter::Workspace;
 
 /// x̂(s|t−1), P(s|t−1) and C = E[x̃(s|t−1) x̃(t|t−1)'] for one past time s.
@@ -76,7 +76,6 @@ impl PastState {
         if mo == 0 {
             return;
         }
-        let chol = &ws.chol[..mo * mo];
         let cht = &mut sc.cht[..n * mo];
         mul_bt(cht, &self.c, &ws.h_o[..mo * n], n, n, mo);
         // x̂(s|t) = x̂(s|t−1) + C H' (S⁻¹ e)
@@ -84,8 +83,7 @@ impl PastState {
         // P(s|t) = P(s|t−1) − (C H') S⁻¹ (C H')'
         let w = &mut sc.s_inv_hct[..mo * n];
         transpose(w, cht, n, mo);
-        solve_lower(chol, w, mo, n);
-        solve_lower_t(chol, w, mo, n);
+        ldl_solve(&ws.s_factor[..mo * mo], w, mo, n);
         mul(&mut sc.nn, cht, w, n, mo, n);
         for (p, d) in self.p.iter_mut().zip(&sc.nn) {
             *p -= d;
