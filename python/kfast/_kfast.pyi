@@ -98,6 +98,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
         form: str = "joseph",
+        outputs: Optional[list[str]] = None,
     ) -> dict[str, Any]: ...
     def smooth_fixed_lag(
         self,

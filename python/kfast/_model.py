@@ -112,20 +112,21 @@ class Simulation(NamedTuple):
 
 @dataclass(frozen=True, repr=False)
 class SmootherResult:
-    """Fixed-interval (RTS) smoother results: every state given all T measurements."""
+    """Fixed-interval (RTS) smoother results: every state given all T measurements. Fields
+    left out with ``smooth(..., outputs=...)`` are None (in ``filter`` too)."""
 
-    x_smooth: np.ndarray
-    """x(t|T-1), shape (T, n)."""
-    P_smooth: np.ndarray
-    """P(t|T-1), shape (T, n, n)."""
-    P_lag1: np.ndarray
-    """Cov(x[t], x[t-1] | y(0..T-1)), shape (T, n, n); row 0 is zero (there is no x[-1])."""
     filter: FilterResult
     """The forward pass."""
+    x_smooth: Optional[np.ndarray] = None
+    """x(t|T-1), shape (T, n)."""
+    P_smooth: Optional[np.ndarray] = None
+    """P(t|T-1), shape (T, n, n)."""
+    P_lag1: Optional[np.ndarray] = None
+    """Cov(x[t], x[t-1] | y(0..T-1)), shape (T, n, n); row 0 is zero (there is no x[-1])."""
 
     def __repr__(self) -> str:
-        T, n = self.x_smooth.shape
-        return f"SmootherResult(T={T}, n={n}, loglik={self.filter.loglik:.6g})"
+        stored = [k for k in ("x_smooth", "P_smooth", "P_lag1") if getattr(self, k) is not None]
+        return f"SmootherResult(loglik={self.filter.loglik:.6g}, fields={stored})"
 
 
 @dataclass(frozen=True, repr=False)
@@ -270,8 +271,7 @@ class LinearGaussian:
         elif P0 is None:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
-        if outputs is not None:
-            outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+        outputs = _output_names(outputs)
         out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=outputs)
         return FilterResult(**out, model=self)
 
@@ -318,10 +318,12 @@ class LinearGaussian:
 
         return spectral_density(self, omega, h=h)
 
-    def smooth(self, y, x0, P0, u=None, form: str = "joseph") -> SmootherResult:
+    def smooth(self, y, x0, P0, u=None, form: str = "joseph", outputs=None) -> SmootherResult:
         """Rauch-Tung-Striebel fixed-interval smoother: x(t|T-1), P(t|T-1) and the lag-one
         covariances Cov(x[t], x[t-1] | all data), with the filter's results. Same arguments
-        and missing-data rules as ``filter``.
+        and missing-data rules as ``filter``. outputs: the names of the fields to store, among
+        "x_smooth", "P_smooth", "P_lag1" and the filter's (e.g. ("x_smooth", "P_smooth")); the
+        others are None, which saves their memory and time. All by default.
 
         Backward pass (ALGORITHMS.md §5.2): J(t) = (P(t|t) F' - K(t) N') P(t+1|t)^-1,
         x(t|T-1) = x(t|t) + J (x(t+1|T-1) - x(t+1|t)), P(t|T-1) = P(t|t) + J (P(t+1|T-1) -
@@ -329,8 +331,8 @@ class LinearGaussian:
         Söderström Lemma 6.4 (F - N R^-1 H in place of F), written without R^-1.
         A singular P(t+1|t) is handled with its pseudo-inverse.
         """
-        out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form))
-        filt = FilterResult(**{k: out.pop(k) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
+        out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form), outputs=_output_names(outputs))
+        filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
 
     def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:
@@ -449,6 +451,13 @@ def _tolerance(value) -> Optional[float]:
     if not tol >= 0:
         raise _kfast.KfastError(f"converge_tol: must be >= 0, got {value!r}")
     return tol
+
+
+def _output_names(outputs) -> Optional[list[str]]:
+    """``outputs=``: None (everything), one name, or an iterable of names."""
+    if outputs is None:
+        return None
+    return [outputs] if isinstance(outputs, str) else list(outputs)
 
 
 def _index(name: str, value) -> int:

@@ -206,7 +206,7 @@ def em(
     converged = False
     iterations = 0
     while iterations < n_iter:
-        sm = LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u)
+        sm = LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u, outputs=("x_smooth", "P_smooth", "P_lag1"))
         history.append(sm.filter.loglik)
         if progress:
             print(f"\rEM {iterations + 1}/{n_iter}  loglik {history[-1]:.6f}", end="", file=sys.stderr, flush=True)

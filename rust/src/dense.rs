@@ -126,34 +126,6 @@ pub(crate) fn symmetrize(a: &mut [f64], n: usize) {
     }
 }
 
-/// Cholesky factorization in place: on success the lower triangle of `a[n×n]` holds `L` with
-/// `a = L L'` (the strict upper triangle is left as it was). Returns the index of the first
-/// pivot that is not positive (or not finite) on failure.
-#[inline(always)]
-pub(crate) fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for l in 0..j {
-            d -= a[j * n + l] * a[j * n + l];
-        }
-        // NaN fails `d > 0`.
-        let positive = d > 0.0 && d.is_finite();
-        if !positive {
-            return Err(j);
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for l in 0..j {
-                s -= a[i * n + l] * a[j * n + l];
-            }
-            a[i * n + j] = s / d;
-        }
-    }
-    Ok(())
-}
-
 /// Square-root-free Cholesky factorization `a = L D L'` in place (Golub & Van Loan, *Matrix
 /// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
 /// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
@@ -258,62 +230,9 @@ fn scale_by_inv_diag(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     }
 }
 
-/// Solves `L X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
-#[inline(always)]
-pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
-    for i in 0..n {
-        for j in 0..i {
-            let lij = l[i * n + j];
-            for c in 0..r {
-                b[i * r + c] -= lij * b[j * r + c];
-            }
-        }
-        // One division per row, not per column: the divisions are the step's bottleneck at
-        // small sizes (n = 4, m = 2: 16 of them per filter step otherwise).
-        let inv = 1.0 / l[i * n + i];
-        for c in 0..r {
-            b[i * r + c] *= inv;
-        }
-    }
-}
-
-/// Solves `L' X = B` in place for `b[n×r]`, with `L` the lower triangle of `l[n×n]`.
-#[inline(always)]
-pub(crate) fn solve_lower_t(l: &[f64], b: &mut [f64], n: usize, r: usize) {
-    for i in (0..n).rev() {
-        for j in i + 1..n {
-            let lji = l[j * n + i];
-            for c in 0..r {
-                b[i * r + c] -= lji * b[j * r + c];
-            }
-        }
-        // One division per row, not per column: the divisions are the step's bottleneck at
-        // small sizes (n = 4, m = 2: 16 of them per filter step otherwise).
-        let inv = 1.0 / l[i * n + i];
-        for c in 0..r {
-            b[i * r + c] *= inv;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn cholesky_solves_a_spd_system() {
-        let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
-        let mut l = a;
-        cholesky(&mut l, 3).unwrap();
-        let mut x = [1.0, 2.0, 3.0];
-        solve_lower(&l, &mut x, 3, 1);
-        solve_lower_t(&l, &mut x, 3, 1);
-        let mut back = [0.0; 3];
-        mul_vec(&mut back, &a, &x, 3, 3);
-        for (b, want) in back.iter().zip([1.0, 2.0, 3.0]) {
-            assert!((b - want).abs() < 1e-12);
-        }
-    }
 
     #[test]
     fn ldl_solves_a_spd_system() {
@@ -341,12 +260,6 @@ mod tests {
         assert!((ldl_log_det(&f, 3) - 44.8f64.ln()).abs() < 1e-12);
         let mut indefinite = [1.0, 2.0, 2.0, 1.0];
         assert_eq!(ldl(&mut indefinite, 2), Err(1));
-    }
-
-    #[test]
-    fn cholesky_reports_the_failing_pivot() {
-        let mut a = [1.0, 1.0, 1.0, 1.0];
-        assert_eq!(cholesky(&mut a, 2), Err(1));
     }
 
     #[test]

@@ -17,7 +17,8 @@
 //! - [`KalmanFilter`]: the same filter one step at a time for streams.
 //! - [`FilterOptions`]: the [`UpdateForm`] (Joseph, the default, or standard) and the optional
 //!   freezing of the gains once the covariance has converged (`converge_tol`).
-//! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances), [`smooth_fixed_lag`] and
+//! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances; [`smooth_into`] stores
+//!   only the outputs asked for), [`smooth_fixed_lag`] and
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
 //! - [`filter_batch`]: many series through one model on all cores, the covariance recursion
 //!   computed once when it is shared.
@@ -66,5 +67,6 @@ pub use riccati::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiS
 pub use sampling::{discretize, discretize_steps, expm, Discretized};
 pub use simulate::propagate;
 pub use smoother::{
-    smooth, smooth_fixed_lag, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult, SmootherResult,
+    smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagResult, FixedLagSmoother, FixedPointResult,
+    SmoothOutputs, SmootherResult,
 };

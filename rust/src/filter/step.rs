@@ -42,8 +42,20 @@ pub(crate) const LN_2PI: f64 = 1.837_877_066_409_345_5;
 /// that the small dense loops are unrolled for the common sizes (chosen once per call by the
 /// drivers); [`Dyn`] serves every other size. The arithmetic is identical.
 pub(crate) trait Dims: Copy {
+    /// Scratch for an n × n matrix and an n-vector: local arrays for [`Fixed`] sizes (which
+    /// the compiler can keep in registers), heap vectors for [`Dyn`].
+    type Square: Buf;
+    type Vector: Buf;
+
     fn n(self) -> usize;
     fn m(self) -> usize;
+
+    fn square(self) -> Self::Square {
+        Buf::zeroed(self.n() * self.n())
+    }
+    fn vector(self) -> Self::Vector {
+        Buf::zeroed(self.n())
+    }
 
     /// The filter loop on local fixed-size arrays ([`super::fixed`]) when the sizes are
     /// compile-time ones and the model allows it; `None` runs the general loop.
@@ -61,6 +73,9 @@ pub(crate) struct Dyn {
 }
 
 impl Dims for Dyn {
+    type Square = Vec<f64>;
+    type Vector = Vec<f64>;
+
     #[inline(always)]
     fn n(self) -> usize {
         self.n
@@ -76,6 +91,9 @@ impl Dims for Dyn {
 pub(crate) struct Fixed<const N: usize, const M: usize>;
 
 impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
+    type Square = [[f64; N]; N];
+    type Vector = [[f64; N]; 1];
+
     #[inline(always)]
     fn n(self) -> usize {
         N
@@ -87,6 +105,43 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
     #[inline(always)]
     fn filter_fixed(self, run: &Run<'_>, ws: &mut Workspace, out: &mut FilterOutputs<'_>) -> Option<Result<f64>> {
         run.filter_fixed::<N, M>(ws, out)
+    }
+}
+
+/// A scratch buffer of `f64`s seen as one slice.
+pub(crate) trait Buf {
+    /// `len` zeros (a fixed-size buffer ignores `len`: its size is its type's).
+    fn zeroed(len: usize) -> Self;
+    fn get(&self) -> &[f64];
+    fn get_mut(&mut self) -> &mut [f64];
+}
+
+impl Buf for Vec<f64> {
+    fn zeroed(len: usize) -> Self {
+        vec![0.0; len]
+    }
+    #[inline(always)]
+    fn get(&self) -> &[f64] {
+        self
+    }
+    #[inline(always)]
+    fn get_mut(&mut self) -> &mut [f64] {
+        self
+    }
+}
+
+impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
+    #[inline(always)]
+    fn zeroed(_len: usize) -> Self {
+        [[0.0; C]; R]
+    }
+    #[inline(always)]
+    fn get(&self) -> &[f64] {
+        self.as_flattened()
+    }
+    #[inline(always)]
+    fn get_mut(&mut self) -> &mut [f64] {
+        self.as_flattened_mut()
     }
 }
 

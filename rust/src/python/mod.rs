@@ -22,6 +22,7 @@ use pyo3::types::PyDict;
 
 use crate::error::Error;
 use crate::filter::{FilterOutputs, Series, UpdateForm};
+use crate::smoother::SmoothOutputs;
 
 create_exception!(kfast, KfastError, PyValueError, "Invalid input to kfast (a ValueError).");
 create_exception!(
@@ -203,9 +204,17 @@ impl<'py> OutArrays<'py> {
 const FILTER_FIELDS: [&str; 11] =
     ["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"];
 
+/// The fields a smoother adds to the filter's.
+const SMOOTH_FIELDS: [&str; 3] = ["x_smooth", "P_smooth", "P_lag1"];
+
 /// The filter's arrays among `names`/`slices` as [`FilterOutputs`] (absent ones are `None`).
 fn filter_outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> FilterOutputs<'a> {
-    let mut out = FilterOutputs::default();
+    outputs(names, slices).0
+}
+
+/// The filter's and the smoother's arrays among `names`/`slices`.
+fn outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> (FilterOutputs<'a>, SmoothOutputs<'a>) {
+    let (mut out, mut sm) = (FilterOutputs::default(), SmoothOutputs::default());
     for (name, slice) in names.iter().zip(slices.iter_mut()) {
         let field = match *name {
             "x_pred" => &mut out.x_pred,
@@ -219,11 +228,14 @@ fn filter_outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> F
             "loglik_t" => &mut out.loglik_t,
             "x_next" => &mut out.x_next,
             "P_next" => &mut out.p_next,
+            "x_smooth" => &mut sm.x_smooth,
+            "P_smooth" => &mut sm.p_smooth,
+            "P_lag1" => &mut sm.p_lag1,
             _ => continue,
         };
         *field = Some(&mut **slice);
     }
-    out
+    (out, sm)
 }
 
 #[pymodule]

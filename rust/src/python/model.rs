@@ -8,10 +8,11 @@ use pyo3::types::PyDict;
 
 use super::{
     data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError, OutArrays,
+    FILTER_FIELDS, SMOOTH_FIELDS,
 };
 use crate::filter::{self, FilterOptions};
 use crate::model::{self, Matrices, StepMatrix};
-use crate::smoother::{self, FilteredView, SmootherOutputs};
+use crate::smoother;
 
 fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
     let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
@@ -126,9 +127,10 @@ impl PyLinearGaussian {
     }
 
     /// Filter then RTS smoother; one dict with the filter's fields and x_smooth, P_smooth,
-    /// P_lag1.
-    #[pyo3(signature = (y, x0, P0, u=None, form="joseph"))]
+    /// P_lag1 (those named in `outputs`, all by default).
+    #[pyo3(signature = (y, x0, P0, u=None, form="joseph", outputs=None))]
     #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
     fn smooth<'py>(
         &self,
         py: Python<'py>,
@@ -137,25 +139,35 @@ impl PyLinearGaussian {
         P0: Array<'py>,
         u: Option<Array<'py>>,
         form: &str,
+        outputs: Option<Vec<String>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let form = parse_form(form)?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
-        let mut out = OutArrays::for_filter(py, steps, n, m, None)?
-            .with(py, &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n]), ("P_lag1", &[steps, n, n])]);
+        let is_smooth = |name: &str| SMOOTH_FIELDS.contains(&name);
+        if let Some(bad) =
+            outputs.iter().flatten().find(|name| !is_smooth(name) && !FILTER_FIELDS.contains(&name.as_str()))
+        {
+            let all: Vec<&str> = FILTER_FIELDS.iter().chain(&SMOOTH_FIELDS).copied().collect();
+            return Err(KfastError::new_err(format!("outputs: unknown field {bad:?}; choose from {all:?}")));
+        }
+        let wanted_filter: Option<Vec<String>> =
+            outputs.as_ref().map(|w| w.iter().filter(|name| !is_smooth(name)).cloned().collect());
+        let shapes = [vec![steps, n], vec![steps, n, n], vec![steps, n, n]];
+        let smooth_specs: Vec<(&'static str, &[usize])> = SMOOTH_FIELDS
+            .iter()
+            .zip(&shapes)
+            .filter(|(name, _)| outputs.as_ref().is_none_or(|w| w.iter().any(|x| x == *name)))
+            .map(|(name, shape)| (*name, shape.as_slice()))
+            .collect();
+        let mut out = OutArrays::for_filter(py, steps, n, m, wanted_filter.as_deref())?.with(py, &smooth_specs);
         let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
-        let loglik = py.detach(|| -> crate::Result<f64> {
-            let loglik = filter::filter_into(model, y, u, x0, p0, form, filter_outputs(&names, &mut slices))?;
-            let [x_pred, p_pred, x_filt, p_filt, _, _, gain, _, _, _, _, x_smooth, p_smooth, p_lag1] = &mut slices[..]
-            else {
-                unreachable!("fourteen output arrays")
-            };
-            let view = FilteredView { x_pred, p_pred, x_filt, p_filt, gain };
-            smoother::rts_into(model, steps, view, SmootherOutputs { x_smooth, p_smooth, p_lag1 })?;
-            Ok(loglik)
+        let loglik = py.detach(|| {
+            let (filt, sm) = super::outputs(&names, &mut slices);
+            smoother::smooth_into(model, y, u, x0, p0, form, filt, sm)
         })?;
         drop(slices);
         let dict = out.into_dict(py)?;

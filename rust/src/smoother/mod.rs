@@ -14,9 +14,10 @@ pub use lagged::{
 };
 pub use rts::{rts_into, FilteredView, SmootherOutputs};
 
-use crate::error::Result;
-use crate::filter::{filter, FilterResult, Series, UpdateForm};
+use crate::error::{Error, Result};
+use crate::filter::{filter_into, FilterOutputs, FilterResult, Series, UpdateForm};
 use crate::model::LinearGaussian;
+use rts::{rts_in_place, Priors};
 
 /// The RTS smoother's results with the filter's.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,22 +41,92 @@ pub fn smooth(
     p0: &[f64],
     form: UpdateForm,
 ) -> Result<SmootherResult> {
-    let filt = filter(model, y, u, x0, p0, form)?;
-    let (n, steps) = (model.n_states(), y.steps());
-    let mut res = SmootherResult {
-        x_smooth: vec![0.0; steps * n],
-        p_smooth: vec![0.0; steps * n * n],
-        p_lag1: vec![0.0; steps * n * n],
-        filter: filt,
+    let (n, m, steps) = (model.n_states(), model.n_obs(), y.steps());
+    let mut filter = FilterResult::zeros(steps, n, m);
+    let (mut x_smooth, mut p_smooth, mut p_lag1) =
+        (vec![0.0; steps * n], vec![0.0; steps * n * n], vec![0.0; steps * n * n]);
+    let out = SmoothOutputs { x_smooth: Some(&mut x_smooth), p_smooth: Some(&mut p_smooth), p_lag1: Some(&mut p_lag1) };
+    filter.loglik = smooth_into(model, y, u, x0, p0, form, filter.outputs(), out)?;
+    Ok(SmootherResult { x_smooth, p_smooth, p_lag1, filter })
+}
+
+/// Output buffers of [`smooth_into`]: x̂(t|T−1) `(T, n)`, P(t|T−1) and the lag-one
+/// covariances `(T, n, n)`; `None` skips one.
+#[derive(Debug, Default)]
+pub struct SmoothOutputs<'a> {
+    pub x_smooth: Option<&'a mut [f64]>,
+    pub p_smooth: Option<&'a mut [f64]>,
+    pub p_lag1: Option<&'a mut [f64]>,
+}
+
+/// [`smooth`] writing into caller-owned buffers: the filter's outputs given in `filt` and the
+/// smoother's given in `out`; returns the log-likelihood. What the backward pass needs but
+/// the caller did not ask for (x̂(t|t−1), P(t|t−1), K with N) is kept in buffers allocated
+/// here; the filtered moments are computed into the smoother's buffers and smoothed in place
+/// (copied out first when `filt` asks for them too).
+#[allow(clippy::too_many_arguments)]
+pub fn smooth_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    form: UpdateForm,
+    mut filt: FilterOutputs<'_>,
+    out: SmoothOutputs<'_>,
+) -> Result<f64> {
+    let (n, m, steps) = (model.n_states(), model.n_obs(), y.steps());
+    let (xs, ps, ks) = (steps * n, steps * n * n, steps * n * m);
+    for (arg, buf, want) in [
+        ("x_smooth", &out.x_smooth, xs),
+        ("P_smooth", &out.p_smooth, ps),
+        ("P_lag1", &out.p_lag1, ps),
+        ("x_filt", &filt.x_filt, xs),
+        ("P_filt", &filt.p_filt, ps),
+    ] {
+        if let Some(got) = buf.as_ref().map(|b| b.len()).filter(|&got| got != want) {
+            return Err(Error::arg(arg, format!("output buffer has {got} entries, needs {want}")));
+        }
+    }
+    let mut own: [Vec<f64>; 5] = Default::default();
+    let [own_x, own_p, own_xp, own_pp, own_k] = &mut own;
+    let x = given_or(out.x_smooth, own_x, xs);
+    let p = given_or(out.p_smooth, own_p, ps);
+    let x_pred = given_or(filt.x_pred.take(), own_xp, xs);
+    let p_pred = given_or(filt.p_pred.take(), own_pp, ps);
+    let mut gain = match (filt.gain.take(), model.matrices().n.is_some()) {
+        (Some(k), _) => Some(k),
+        (None, true) => Some(given_or(None, own_k, ks)),
+        (None, false) => None,
     };
-    let view = FilteredView {
-        x_pred: &res.filter.x_pred,
-        p_pred: &res.filter.p_pred,
-        x_filt: &res.filter.x_filt,
-        p_filt: &res.filter.p_filt,
-        gain: &res.filter.gain,
+    let (x_filt, p_filt) = (filt.x_filt.take(), filt.p_filt.take());
+    let forward = FilterOutputs {
+        x_pred: Some(&mut *x_pred),
+        p_pred: Some(&mut *p_pred),
+        x_filt: Some(&mut *x),
+        p_filt: Some(&mut *p),
+        gain: gain.as_deref_mut(),
+        ..filt
     };
-    let out = SmootherOutputs { x_smooth: &mut res.x_smooth, p_smooth: &mut res.p_smooth, p_lag1: &mut res.p_lag1 };
-    rts_into(model, steps, view, out)?;
-    Ok(res)
+    let loglik = filter_into(model, y, u, x0, p0, form, forward)?;
+    if let Some(xf) = x_filt {
+        xf.copy_from_slice(x);
+    }
+    if let Some(pf) = p_filt {
+        pf.copy_from_slice(p);
+    }
+    let priors = Priors { x_pred, p_pred, gain: gain.as_deref().unwrap_or(&[]) };
+    rts_in_place(model, priors, x, p, out.p_lag1)?;
+    Ok(loglik)
+}
+
+/// The caller's buffer, or `own` resized to `len` zeros.
+fn given_or<'a>(given: Option<&'a mut [f64]>, own: &'a mut Vec<f64>, len: usize) -> &'a mut [f64] {
+    match given {
+        Some(b) => b,
+        None => {
+            own.resize(len, 0.0);
+            own
+        }
+    }
 }

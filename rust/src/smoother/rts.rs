@@ -14,8 +14,10 @@
 //! that it needs no R⁻¹ and holds for singular R too. Missing data need nothing extra: K has
 //! zero columns for missing components.
 
-use crate::dense::{cholesky, mul, mul_bt, mul_vec_add, solve_lower, solve_lower_t, symmetrize, transpose};
+use crate::dense::{ldl, ldl_solve, mul, mul_bt, mul_sym, mul_vec_add, symmetrize, transpose};
 use crate::error::{Error, Result};
+use crate::filter::step::{Buf, Dims};
+use crate::filter::with_dims;
 use crate::model::LinearGaussian;
 
 /// The filter outputs the backward pass reads (row-major, sizes as in [`crate::FilterResult`]).
@@ -55,78 +57,162 @@ pub fn rts_into(model: &LinearGaussian, steps: usize, filt: FilteredView<'_>, ou
             return Err(Error::arg(arg, format!("buffer has {got} entries, needs {want}")));
         }
     }
-    if steps == 0 {
-        return Ok(());
+    out.x_smooth.copy_from_slice(filt.x_filt);
+    out.p_smooth.copy_from_slice(filt.p_filt);
+    let priors = Priors { x_pred: filt.x_pred, p_pred: filt.p_pred, gain: filt.gain };
+    rts_in_place(model, priors, out.x_smooth, out.p_smooth, Some(out.p_lag1))
+}
+
+/// What the backward pass reads besides the filtered moments: x̂(t|t−1), P(t|t−1) and, when
+/// the model has N, the filter gain K(t).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Priors<'a> {
+    pub x_pred: &'a [f64],
+    pub p_pred: &'a [f64],
+    pub gain: &'a [f64],
+}
+
+/// The backward pass in place: `x`, `p` hold x̂(t|t), P(t|t) `(T, n)`, `(T, n, n)` on entry
+/// and x̂(t|T−1), P(t|T−1) on return (the C-style smoother: no copy of the filtered moments).
+/// Sizes are the caller's to check.
+pub(crate) fn rts_in_place(
+    model: &LinearGaussian,
+    priors: Priors<'_>,
+    x: &mut [f64],
+    p: &mut [f64],
+    mut p_lag1: Option<&mut [f64]>,
+) -> Result<()> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    if let Some(l) = p_lag1.as_deref_mut() {
+        l[..n * n].fill(0.0);
     }
-    let last = steps - 1;
-    out.x_smooth[last * n..].copy_from_slice(&filt.x_filt[last * n..]);
-    out.p_smooth[last * nn..].copy_from_slice(&filt.p_filt[last * nn..]);
-    out.p_lag1[..nn].fill(0.0);
-    let mut sc = Backward::new(n);
-    for t in (0..last).rev() {
-        let sys = model.at(t);
-        let (cur, next) = (t * nn..(t + 1) * nn, (t + 1) * nn..(t + 2) * nn);
+    let pass = Backward { model, priors };
+    with_dims!(n, m, pass.run(x, p, p_lag1))
+}
+
+struct Backward<'a> {
+    model: &'a LinearGaussian,
+    priors: Priors<'a>,
+}
+
+/// Scratch of one backward step.
+struct Scratch<D: Dims> {
+    j: D::Square,
+    jt: D::Square,
+    factor: D::Square,
+    tmp: D::Square,
+    dp: D::Square,
+    dx: D::Vector,
+}
+
+impl Backward<'_> {
+    /// All steps t = T−2 … 0; on x86-64 CPUs with AVX2 compiled a second time for them (same
+    /// bits: no fused multiply-adds).
+    fn run<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], p_lag1: Option<&mut [f64]>) -> Result<()> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.run_avx2(d, x, p, p_lag1) };
+        }
+        self.run_loop(d, x, p, p_lag1)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], p_lag1: Option<&mut [f64]>) -> Result<()> {
+        self.run_loop(d, x, p, p_lag1)
+    }
+
+    #[inline(always)]
+    fn run_loop<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], mut p_lag1: Option<&mut [f64]>) -> Result<()> {
+        let n = d.n();
+        let steps = x.len() / n;
+        let mut sc: Scratch<D> = Scratch {
+            j: d.square(),
+            jt: d.square(),
+            factor: d.square(),
+            tmp: d.square(),
+            dp: d.square(),
+            dx: d.vector(),
+        };
+        for t in (0..steps.saturating_sub(1)).rev() {
+            self.step(d, t, x, p, p_lag1.as_deref_mut(), &mut sc)?;
+        }
+        Ok(())
+    }
+
+    /// One step back, from t + 1 to t.
+    #[inline(always)]
+    fn step<D: Dims>(
+        &self,
+        d: D,
+        t: usize,
+        x: &mut [f64],
+        p: &mut [f64],
+        p_lag1: Option<&mut [f64]>,
+        sc: &mut Scratch<D>,
+    ) -> Result<()> {
+        let (n, m) = (d.n(), d.m());
+        let nn = n * n;
+        let sys = self.model.at(t);
+        let (p_cur, p_next) = p[t * nn..(t + 2) * nn].split_at_mut(nn);
+        let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
         // Jt = J' = P(t+1|t)⁻¹ (F P(t|t) − N K')
-        mul(&mut sc.jt, sys.f, &filt.p_filt[cur.clone()], n, n, n);
+        let jt = sc.jt.get_mut();
+        mul(jt, sys.f, p_cur, n, n, n);
         if let Some(nmat) = sys.n {
-            mul_bt(&mut sc.tmp, nmat, &filt.gain[t * n * m..(t + 1) * n * m], n, m, n);
-            for (j, d) in sc.jt.iter_mut().zip(&sc.tmp) {
+            let tmp = sc.tmp.get_mut();
+            mul_bt(tmp, nmat, &self.priors.gain[t * n * m..(t + 1) * n * m], n, m, n);
+            for (j, d) in jt.iter_mut().zip(tmp.iter()) {
                 *j -= d;
             }
         }
-        solve_psd(&filt.p_pred[next.clone()], &mut sc.jt, &mut sc.chol, n)
-            .map_err(|p| Error::arg("P_pred", p).at_step(Some(t + 1)))?;
-        transpose(&mut sc.j, &sc.jt, n, n);
+        solve_psd(p_pred, jt, sc.factor.get_mut(), n).map_err(|e| Error::arg("P_pred", e).at_step(Some(t + 1)))?;
+        let (j, jt) = (sc.j.get_mut(), sc.jt.get());
+        transpose(j, jt, n, n);
         // x̂(t|T−1) = x̂(t|t) + J (x̂(t+1|T−1) − x̂(t+1|t))
-        for i in 0..n {
-            sc.dx[i] = out.x_smooth[(t + 1) * n + i] - filt.x_pred[(t + 1) * n + i];
+        let (x_cur, x_next) = x[t * n..(t + 2) * n].split_at_mut(n);
+        let dx = sc.dx.get_mut();
+        for ((d, xs), xp) in dx.iter_mut().zip(x_next.iter()).zip(&self.priors.x_pred[(t + 1) * n..(t + 2) * n]) {
+            *d = xs - xp;
         }
-        let xs = &mut out.x_smooth[t * n..(t + 1) * n];
-        xs.copy_from_slice(&filt.x_filt[t * n..(t + 1) * n]);
-        mul_vec_add(xs, &sc.j, &sc.dx, n, n);
-        // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'
-        for (d, (ps, pp)) in sc.dp.iter_mut().zip(out.p_smooth[next.clone()].iter().zip(&filt.p_pred[next.clone()])) {
+        mul_vec_add(x_cur, j, dx, n, n);
+        // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'   (a symmetric product)
+        let dp = sc.dp.get_mut();
+        for (d, (ps, pp)) in dp.iter_mut().zip(p_next.iter().zip(p_pred)) {
             *d = ps - pp;
         }
-        mul(&mut sc.tmp, &sc.dp, &sc.jt, n, n, n);
-        mul(&mut sc.dp, &sc.j, &sc.tmp, n, n, n);
-        let ps = &mut out.p_smooth[cur.clone()];
-        for (p, (pf, d)) in ps.iter_mut().zip(filt.p_filt[cur].iter().zip(&sc.dp)) {
-            *p = pf + d;
+        let tmp = sc.tmp.get_mut();
+        mul(tmp, dp, jt, n, n, n);
+        mul_sym(dp, j, tmp, n, n);
+        for (p, d) in p_cur.iter_mut().zip(dp.iter()) {
+            *p += d;
         }
-        symmetrize(ps, n);
+        symmetrize(p_cur, n);
         // P(t+1, t | T−1) = P(t+1|T−1) J'
-        mul(&mut out.p_lag1[next.clone()], &out.p_smooth[next], &sc.jt, n, n, n);
-    }
-    Ok(())
-}
-
-struct Backward {
-    j: Vec<f64>,
-    jt: Vec<f64>,
-    chol: Vec<f64>,
-    tmp: Vec<f64>,
-    dp: Vec<f64>,
-    dx: Vec<f64>,
-}
-
-impl Backward {
-    fn new(n: usize) -> Self {
-        let z = |len| vec![0.0; len];
-        Backward { j: z(n * n), jt: z(n * n), chol: z(n * n), tmp: z(n * n), dp: z(n * n), dx: z(n) }
+        if let Some(l) = p_lag1 {
+            mul(&mut l[(t + 1) * nn..(t + 2) * nn], p_next, jt, n, n, n);
+        }
+        Ok(())
     }
 }
 
-/// Solves `A X = B` in place for the symmetric PSD `a[n×n]` and `b[n×n]`: by Cholesky, or,
-/// when A is singular (e.g. Q = 0 with a singular F), with the pseudo-inverse, which gives
-/// the smoother gain because Cov(x̃(t|t), x̃(t+1|t)) lies in the range of P(t+1|t).
-fn solve_psd(a: &[f64], b: &mut [f64], chol: &mut [f64], n: usize) -> std::result::Result<(), String> {
-    chol.copy_from_slice(a);
-    if cholesky(chol, n).is_ok() {
-        solve_lower(chol, b, n, n);
-        solve_lower_t(chol, b, n, n);
+/// Solves `A X = B` in place for the symmetric PSD `a[n×n]` and `b[n×n]`: by an L D L'
+/// factorization, or, when A is singular (e.g. Q = 0 with a singular F), with the
+/// pseudo-inverse, which gives the smoother gain because Cov(x̃(t|t), x̃(t+1|t)) lies in the
+/// range of P(t+1|t).
+#[inline(always)]
+fn solve_psd(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
+    factor.copy_from_slice(a);
+    if ldl(factor, n).is_ok() {
+        ldl_solve(factor, b, n, n);
         return Ok(());
     }
+    solve_pseudo_inverse(a, b, n)
+}
+
+#[cold]
+fn solve_pseudo_inverse(a: &[f64], b: &mut [f64], n: usize) -> std::result::Result<(), String> {
     let mat = faer::Mat::<f64>::from_fn(n, n, |i, j| a[i * n + j]);
     let eig = mat.self_adjoint_eigen(faer::Side::Lower).map_err(|_| "eigendecomposition failed".to_string())?;
     let (u, s) = (eig.U(), eig.S().column_vector());

@@ -1,0 +1,97 @@
+"""`outputs=` of filter and smooth: a subset of the fields is stored, bit-for-bit the same as
+in the full call, and the rest are None. The smoother's fast paths (filtered moments smoothed
+in place, internal buffers for what the backward pass needs) are exercised through it."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+import kfast
+from modelgen import random_case
+
+FILTER_FIELDS = ["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"]
+SMOOTH_FIELDS = ["x_smooth", "P_smooth", "P_lag1"]
+OPTIONS = list(itertools.product([False, True], [False, True], [False, True], ["none", "partial"]))
+
+
+def case_for(seed):
+    inputs, correlated, time_varying, missing = OPTIONS[seed % len(OPTIONS)]
+    rng = np.random.default_rng(700 + seed)
+    n, m = int(rng.integers(1, 6)), int(rng.integers(1, 4))
+    return random_case(seed, n, m, T=20, inputs=inputs, correlated=correlated, time_varying=time_varying, missing=missing)
+
+
+def subsets(rng, fields):
+    """A few random non-empty subsets of `fields`, the single fields and the pairs that
+    matter for the fast paths."""
+    picks = [[f] for f in fields]
+    picks += [list(rng.choice(fields, size=int(rng.integers(1, len(fields) + 1)), replace=False)) for _ in range(6)]
+    return picks
+
+
+def same(got, want, what):
+    assert got is not None, what
+    np.testing.assert_array_equal(got, want, err_msg=what)
+
+
+@pytest.mark.parametrize("seed", range(len(OPTIONS) * 2))
+def test_filter_outputs_subset_equals_the_full_call(seed):
+    case = case_for(seed)
+    model = kfast.LinearGaussian(**case.model)
+    full = model.filter(case.y, case.x0, case.P0, u=case.u)
+    for wanted in subsets(np.random.default_rng(seed), FILTER_FIELDS):
+        res = model.filter(case.y, case.x0, case.P0, u=case.u, outputs=wanted)
+        assert res.loglik == full.loglik
+        for name in FILTER_FIELDS:
+            if name in wanted:
+                same(getattr(res, name), getattr(full, name), f"{name} with outputs={wanted} {case.info}")
+            else:
+                assert getattr(res, name) is None, name
+
+
+@pytest.mark.parametrize("seed", range(len(OPTIONS) * 2))
+@pytest.mark.parametrize("form", ["joseph", "standard"])
+def test_smooth_outputs_subset_equals_the_full_call(seed, form):
+    case = case_for(seed)
+    model = kfast.LinearGaussian(**case.model)
+    full = model.smooth(case.y, case.x0, case.P0, u=case.u, form=form)
+    rng = np.random.default_rng(seed)
+    picks = subsets(rng, SMOOTH_FIELDS + FILTER_FIELDS)
+    picks += [["x_smooth", "P_smooth"], ["x_smooth", "x_filt"], ["P_smooth", "P_filt", "K"], ["P_lag1"]]
+    for wanted in picks:
+        res = model.smooth(case.y, case.x0, case.P0, u=case.u, form=form, outputs=wanted)
+        assert res.filter.loglik == full.filter.loglik
+        for name in SMOOTH_FIELDS:
+            if name in wanted:
+                same(getattr(res, name), getattr(full, name), f"{name} with outputs={wanted} {case.info}")
+            else:
+                assert getattr(res, name) is None, name
+        for name in FILTER_FIELDS:
+            if name in wanted:
+                same(getattr(res.filter, name), getattr(full.filter, name), f"filter {name} with {wanted}")
+            else:
+                assert getattr(res.filter, name) is None, name
+
+
+def test_outputs_accept_one_name_and_reject_unknown_ones():
+    case = case_for(0)
+    model = kfast.LinearGaussian(**case.model)
+    res = model.smooth(case.y, case.x0, case.P0, outputs="x_smooth")
+    assert res.x_smooth is not None and res.P_smooth is None and res.filter.x_filt is None
+    res = model.filter(case.y, case.x0, case.P0, outputs="P_filt")
+    assert res.P_filt is not None and res.x_filt is None
+    with pytest.raises(ValueError, match='outputs: unknown field "x_smoth"'):
+        model.smooth(case.y, case.x0, case.P0, outputs=["x_smoth"])
+    with pytest.raises(ValueError, match='outputs: unknown field "x_smooth"'):
+        model.filter(case.y, case.x0, case.P0, outputs=["x_smooth"])
+
+
+def test_smooth_does_not_modify_its_inputs():
+    case = case_for(3)
+    model = kfast.LinearGaussian(**case.model)
+    args = [case.y, case.x0, case.P0]
+    copies = [a.copy() for a in args]
+    model.smooth(*args, u=case.u, outputs=("x_smooth", "P_smooth"))
+    for a, c in zip(args, copies):
+        np.testing.assert_array_equal(a, c)
