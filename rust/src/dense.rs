@@ -126,6 +126,54 @@ pub(crate) fn symmetrize(a: &mut [f64], n: usize) {
     }
 }
 
+/// LU factorization with partial pivoting in place (`P a = L U`, L unit lower triangular):
+/// `piv[k]` is the row swapped with row k at step k. For the small dense solves of the
+/// Riccati iterations, where a library call's overhead would exceed the arithmetic. A zero
+/// pivot leaves infinities or NaN in the factor (callers check the results are finite).
+pub(crate) fn lu_in_place(a: &mut [f64], piv: &mut [usize], n: usize) {
+    for k in 0..n {
+        let p = (k..n).max_by(|&i, &j| a[i * n + k].abs().total_cmp(&a[j * n + k].abs())).unwrap_or(k);
+        piv[k] = p;
+        if p != k {
+            for c in 0..n {
+                a.swap(k * n + c, p * n + c);
+            }
+        }
+        let inv = 1.0 / a[k * n + k];
+        for i in k + 1..n {
+            let l = a[i * n + k] * inv;
+            a[i * n + k] = l;
+            for c in k + 1..n {
+                a[i * n + c] -= l * a[k * n + c];
+            }
+        }
+    }
+}
+
+/// Solves `A X = B` in place for `b[n×r]` with the factor of [`lu_in_place`].
+pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: usize) {
+    for (k, &p) in piv.iter().enumerate() {
+        if p != k {
+            for c in 0..r {
+                b.swap(k * r + c, p * r + c);
+            }
+        }
+    }
+    solve_unit_lower(lu, b, n, r);
+    for i in (0..n).rev() {
+        for j in i + 1..n {
+            let u = lu[i * n + j];
+            for c in 0..r {
+                b[i * r + c] -= u * b[j * r + c];
+            }
+        }
+        let inv = 1.0 / lu[i * n + i];
+        for c in 0..r {
+            b[i * r + c] *= inv;
+        }
+    }
+}
+
 /// Square-root-free Cholesky factorization `a = L D L'` in place (Golub & Van Loan, *Matrix
 /// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
 /// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
@@ -260,6 +308,21 @@ mod tests {
         assert!((ldl_log_det(&f, 3) - 44.8f64.ln()).abs() < 1e-12);
         let mut indefinite = [1.0, 2.0, 2.0, 1.0];
         assert_eq!(ldl(&mut indefinite, 2), Err(1));
+    }
+
+    #[test]
+    fn lu_solves_a_system_that_needs_pivoting() {
+        let a = [0.0, 2.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.0, 1.0];
+        let (mut lu, mut piv) = (a, [0; 3]);
+        lu_in_place(&mut lu, &mut piv, 3);
+        let mut x = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]; // two right-hand sides
+        let b = x;
+        lu_solve(&lu, &piv, &mut x, 3, 2);
+        let mut back = [0.0; 6];
+        mul(&mut back, &a, &x, 3, 3, 2);
+        for (got, want) in back.iter().zip(b) {
+            assert!((got - want).abs() < 1e-12, "{back:?}");
+        }
     }
 
     #[test]

@@ -18,7 +18,9 @@
 use faer::linalg::solvers::Solve;
 use faer::{c64, Mat};
 
+use crate::dense::{lu_in_place, lu_solve, mul, mul_bt, symmetrize, transpose};
 use crate::error::{Error, Result};
+use crate::filter::step::{Buf, Dims, Dyn, Fixed};
 use crate::lyapunov::{checked_mat, from_mat, solve_continuous_lyapunov, solve_discrete_lyapunov, to_mat};
 
 /// How the DARE is solved.
@@ -201,36 +203,110 @@ fn riccati_step(p: &Problem, x: &Mat<f64>, k: &Mat<f64>) -> Mat<f64> {
     sym(&(acl.transpose() * x * &acl + &p.q - &sk - sk.transpose() + k.transpose() * &p.r * k))
 }
 
-/// Structure-preserving doubling on the problem with s removed (ALGORITHMS.md §6.4e).
+/// Structure-preserving doubling on the problem with s removed (ALGORITHMS.md §6.4e):
+/// A ← A W⁻¹A, G ← G + A W⁻¹G A', H ← H + A'H W⁻¹A with W = I + G H, until H (→ X) settles.
+/// The loop runs on row-major buffers with the small dense kernels and one LU of W per step
+/// (at n = 4 a faer call costs more than its arithmetic; from 8³ multiply-adds the products
+/// still go to faer's matmul).
 fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
     let n = p.a.nrows();
     let rs = r_inv * p.s.transpose();
-    let mut ak = &p.a - &p.b * &rs;
-    let mut gk = sym(&(&p.b * r_inv * p.b.transpose()));
-    let mut hk = sym(&(&p.q - &p.s * &rs));
-    let mut previous = f64::INFINITY;
-    for it in 1..=100 {
-        let w = Mat::<f64>::identity(n, n) + &gk * &hk;
-        let lu = w.partial_piv_lu(); // one factorization, two right-hand sides
-        let v1 = lu.solve(&ak);
-        let v2 = lu.solve(&gk);
-        let a_next = &ak * &v1;
-        let g_next = sym(&(&gk + &ak * &v2 * ak.transpose()));
-        let h_next = sym(&(&hk + ak.transpose() * &hk * &v1));
-        let change = (&h_next - &hk).norm_max();
-        let size = h_next.norm_max();
-        if !all_finite(&h_next) || !all_finite(&a_next) {
-            return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
+    let a0 = from_mat(&(&p.a - &p.b * &rs));
+    let g0 = from_mat(&sym(&(&p.b * r_inv * p.b.transpose())));
+    let h0 = from_mat(&sym(&(&p.q - &p.s * &rs)));
+    let start = Start { a: &a0, g: &g0, h: &h0 };
+    // Compile-time sizes for small n, so that the loops unroll and the iterates stay local.
+    let (x, it) = match n {
+        1 => start.doubling(Fixed::<1, 1>),
+        2 => start.doubling(Fixed::<2, 1>),
+        3 => start.doubling(Fixed::<3, 1>),
+        4 => start.doubling(Fixed::<4, 1>),
+        6 => start.doubling(Fixed::<6, 1>),
+        8 => start.doubling(Fixed::<8, 1>),
+        _ => start.doubling(Dyn { n, m: 1 }),
+    }?;
+    Ok((to_mat(&x, n), it))
+}
+
+/// The starting A, G, H of the doubling iteration, row-major.
+struct Start<'a> {
+    a: &'a [f64],
+    g: &'a [f64],
+    h: &'a [f64],
+}
+
+impl Start<'_> {
+    fn doubling<D: Dims>(&self, d: D) -> Result<(Vec<f64>, usize)> {
+        let n = d.n();
+        let (mut ak, mut gk, mut hk) = (d.square(), d.square(), d.square());
+        ak.get_mut().copy_from_slice(self.a);
+        gk.get_mut().copy_from_slice(self.g);
+        hk.get_mut().copy_from_slice(self.h);
+        let (mut w, mut v1, mut v2, mut tmp, mut at, mut next) =
+            (d.square(), d.square(), d.square(), d.square(), d.square(), d.square());
+        let mut piv = vec![0; n];
+        let mut previous = f64::INFINITY;
+        for it in 1..=100 {
+            let (a, g, h) = (ak.get_mut(), gk.get_mut(), hk.get_mut());
+            let w = w.get_mut();
+            mul(w, g, h, n, n, n);
+            for i in 0..n {
+                w[i * n + i] += 1.0;
+            }
+            let (v1, v2, tmp, at, next) = (v1.get_mut(), v2.get_mut(), tmp.get_mut(), at.get_mut(), next.get_mut());
+            v1.copy_from_slice(a);
+            v2.copy_from_slice(g);
+            solve_twice(w, &mut piv, v1, v2, n);
+            // G + A V2 A'
+            mul(tmp, a, v2, n, n, n);
+            mul_bt(next, tmp, a, n, n, n);
+            for (gi, di) in g.iter_mut().zip(next.iter()) {
+                *gi += di;
+            }
+            symmetrize(g, n);
+            // H + A' H V1
+            mul(tmp, h, v1, n, n, n);
+            transpose(at, a, n, n);
+            mul(next, at, tmp, n, n, n);
+            let (mut change, mut size) = (0.0f64, 0.0f64);
+            for (hi, di) in h.iter_mut().zip(next.iter()) {
+                *hi += di;
+                change = change.max(di.abs());
+            }
+            symmetrize(h, n);
+            // A V1
+            mul(next, a, v1, n, n, n);
+            a.copy_from_slice(next);
+            for v in h.iter() {
+                size = size.max(v.abs());
+            }
+            if !h.iter().chain(a.iter()).all(|v| v.is_finite()) {
+                return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
+            }
+            let a_size = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+            if converged(change, previous, size) || a_size <= 1e-300 {
+                return Ok((h.to_vec(), it));
+            }
+            previous = change;
         }
-        ak = a_next;
-        gk = g_next;
-        hk = h_next;
-        if converged(change, previous, size) || ak.norm_max() <= 1e-300 {
-            return Ok((hk, it));
-        }
-        previous = change;
+        Err(no_solution("the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)"))
     }
-    Err(no_solution("the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)"))
+}
+
+/// Solves `W X = V` in place for `v1` and `v2` (n × n each) with one LU of `w`: the small
+/// kernels up to n = 8, faer's blocked LU beyond (measured: at n = 20 and 100 the plain loops
+/// are 1.5× and 3.6× slower than faer).
+#[inline(always)]
+fn solve_twice(w: &mut [f64], piv: &mut [usize], v1: &mut [f64], v2: &mut [f64], n: usize) {
+    if n <= 8 {
+        lu_in_place(w, piv, n);
+        lu_solve(w, piv, v1, n, n);
+        lu_solve(w, piv, v2, n, n);
+        return;
+    }
+    let lu = faer::MatRef::from_row_major_slice(w, n, n).partial_piv_lu();
+    lu.solve_in_place(faer::MatMut::from_row_major_slice_mut(v1, n, n));
+    lu.solve_in_place(faer::MatMut::from_row_major_slice_mut(v2, n, n));
 }
 
 /// Riccati iteration from X = I (ALGORITHMS.md §6.4a).
