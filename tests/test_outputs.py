@@ -95,3 +95,21 @@ def test_smooth_does_not_modify_its_inputs():
     model.smooth(*args, u=case.u, outputs=("x_smooth", "P_smooth"))
     for a, c in zip(args, copies):
         np.testing.assert_array_equal(a, c)
+
+
+def test_outputs_are_written_in_full_over_reused_memory():
+    """The output arrays are allocated without zeroing: every entry must be written. Freed
+    buffers full of a marker value make reused memory visible if an entry were skipped."""
+    case = case_for(5)  # missing values: zero gain columns, NaN innovations
+    model = kfast.LinearGaussian(**case.model)
+    marker = 7.25e11
+    for _ in range(3):
+        junk = [np.full(size, marker) for size in (20, 80, 400, 1600, 6400) for _ in range(8)]
+        del junk
+        filt = model.filter(case.y, case.x0, case.P0, u=case.u)
+        sm = model.smooth(case.y, case.x0, case.P0, u=case.u, outputs=SMOOTH_FIELDS + ["x_pred", "K"])
+        arrays = [getattr(filt, f) for f in FILTER_FIELDS] + [sm.x_smooth, sm.P_smooth, sm.P_lag1]
+        arrays += [sm.filter.x_pred, sm.filter.K]
+        for a in arrays:
+            assert not np.any(a == marker)
+        np.testing.assert_array_equal(sm.P_lag1[0], 0.0)

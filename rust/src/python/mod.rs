@@ -148,7 +148,22 @@ impl<'py> OutArrays<'py> {
         }
     }
 
-    /// The filter's outputs named in `wanted` (all of [`FILTER_FIELDS`] when `None`).
+    /// Like [`new`](Self::new) but not zeroed, for outputs the core writes in full before
+    /// they reach Python (the filter's and the smoother's: every row of every output is
+    /// stored). Zeroing is a pass over memory that costs as much as a third of a
+    /// frozen-gain filter step at n = 20, where P(t|t) is most of what is written.
+    fn written_in_full(py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
+        OutArrays {
+            names: specs.iter().map(|s| s.0).collect(),
+            // SAFETY: f64 has no invalid bit patterns and no destructor; every entry is written
+            // by the filter/smoother before the array is handed to Python, and an array of a
+            // call that fails is dropped unseen.
+            arrays: specs.iter().map(|s| unsafe { PyArrayDyn::<f64>::new(py, IxDyn(s.1), false) }).collect(),
+        }
+    }
+
+    /// The filter's outputs named in `wanted` (all of [`FILTER_FIELDS`] when `None`), written
+    /// in full by the filter.
     fn for_filter(py: Python<'py>, steps: usize, n: usize, m: usize, wanted: Option<&[String]>) -> PyResult<Self> {
         let shape = |name: &str| -> Vec<usize> {
             match name {
@@ -169,12 +184,12 @@ impl<'py> OutArrays<'py> {
             FILTER_FIELDS.iter().copied().filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f))).collect();
         let shapes: Vec<Vec<usize>> = names.iter().map(|f| shape(f)).collect();
         let specs: Vec<(&'static str, &[usize])> = names.iter().zip(&shapes).map(|(f, s)| (*f, s.as_slice())).collect();
-        Ok(Self::new(py, &specs))
+        Ok(Self::written_in_full(py, &specs))
     }
 
-    /// Appends more arrays.
-    fn with(mut self, py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
-        let more = Self::new(py, specs);
+    /// Appends more arrays that the core writes in full (see [`written_in_full`](Self::written_in_full)).
+    fn with_written_in_full(mut self, py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
+        let more = Self::written_in_full(py, specs);
         self.names.extend(more.names);
         self.arrays.extend(more.arrays);
         self

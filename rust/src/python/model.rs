@@ -161,7 +161,8 @@ impl PyLinearGaussian {
             .filter(|(name, _)| outputs.as_ref().is_none_or(|w| w.iter().any(|x| x == *name)))
             .map(|(name, shape)| (*name, shape.as_slice()))
             .collect();
-        let mut out = OutArrays::for_filter(py, steps, n, m, wanted_filter.as_deref())?.with(py, &smooth_specs);
+        let mut out =
+            OutArrays::for_filter(py, steps, n, m, wanted_filter.as_deref())?.with_written_in_full(py, &smooth_specs);
         let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
