@@ -88,11 +88,32 @@ pub(crate) fn mul_bt_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize
     }
 }
 
+/// `a · b` with four interleaved partial sums: the sum's dependency chain is a quarter as long
+/// and the products vectorize (a mean-only filter step at n = 20 is mostly such sums).
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let k = a.len().min(b.len());
+    let (a, b) = (&a[..k], &b[..k]);
+    let mut acc = [0.0; 4];
+    let mut ca = a.chunks_exact(4);
+    let mut cb = b.chunks_exact(4);
+    for (pa, pb) in (&mut ca).zip(&mut cb) {
+        for l in 0..4 {
+            acc[l] += pa[l] * pb[l];
+        }
+    }
+    let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
+    for (p, q) in ca.remainder().iter().zip(cb.remainder()) {
+        s += p * q;
+    }
+    s
+}
+
 /// `y[m] = a[m×k] · x[k]`.
 #[inline(always)]
 pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
-        y[i] = a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum();
+        y[i] = dot(&a[i * k..(i + 1) * k], &x[..k]);
     }
 }
 
@@ -100,7 +121,7 @@ pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
 #[inline(always)]
 pub(crate) fn mul_vec_add(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
-        y[i] += a[i * k..(i + 1) * k].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
+        y[i] += dot(&a[i * k..(i + 1) * k], &x[..k]);
     }
 }
 
