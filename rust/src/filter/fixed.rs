@@ -174,7 +174,8 @@ impl<const N: usize, const M: usize> Local<N, M> {
                 }
             }
         }
-        symmetrize(p_filt, n);
+        // P(t|t) is exactly symmetric already: P(t|t−1) is, and both forms add mirrored
+        // symmetric products (mul_sym, mul_bt_sym), so no symmetrization here.
         if want_gain {
             transpose(self.gain.as_flattened_mut(), gain_t, m, n);
         }

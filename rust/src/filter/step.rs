@@ -389,7 +389,8 @@ impl Workspace {
                 }
             }
         }
-        symmetrize(&mut self.p_filt, n);
+        // P(t|t) is exactly symmetric already: P(t|t−1) is, and both forms add mirrored
+        // symmetric products (mul_sym, mul_bt_sym), so no symmetrization here.
         if self.want_gain {
             for (j, &i) in self.obs[..mo].iter().enumerate() {
                 for r in 0..n {
