@@ -6,10 +6,12 @@
 
 /// Products with at least this many multiply-adds go to faer's blocked, SIMD matrix product;
 /// smaller ones stay in the plain loops (which the compiler unrolls for fixed sizes). Measured
-/// on the W8 random models (n = 8..64, m = n/2, Joseph form): at n = 8, 12, 16, 24, 32, 64
-/// the loops alone take 0.94, 3.7, 7.3, 22, 48, 334 µs per step; with faer from 8³ on,
-/// 0.74, 2.0, 2.8, 7.0, 20, 115 µs; from 16³ on, 0.96, 3.7, 4.4, 14, 19, 114 µs.
-pub(crate) const FAER_MIN_FLOPS: usize = 8 * 8 * 8;
+/// on the W8 random models (m = n/2, Joseph form), µs per step at n = 8, 12, 16, 24, 32, 64:
+/// heap workspace, loops only 0.94, 3.7, 7.3, 22, 48, 334; faer from 8³ 0.74, 2.0, 2.8, 7.0,
+/// 20, 115; from 16³ 0.96, 3.7, 4.4, 14, 19, 114. Since the filter loop on local arrays
+/// (compile-time sizes up to n = 8, `filter/fixed.rs`), the loops win at n = 8 (0.34 µs,
+/// against 0.50 with faer from 8³), so faer starts just above 8³.
+pub(crate) const FAER_MIN_FLOPS: usize = 8 * 8 * 8 + 1;
 
 fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {
     let c = faer::MatMut::from_row_major_slice_mut(c, a.nrows(), b.ncols());
