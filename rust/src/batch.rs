@@ -1,7 +1,7 @@
 //! Many independent series through one model, in parallel (rayon): [`filter_batch`].
 //!
 //! When no value is missing, the prior covariance is shared and (so) the covariance
-//! recursion does not depend on the data, it is computed once: P H', the Cholesky factor of S
+//! recursion does not depend on the data, it is computed once: P H', the L D L' factor of S
 //! and log det S per step. Each series then only moves its state, with exactly the
 //! operations of the full recursion (so its results are bit-for-bit those of filtering it
 //! alone), at O(n² + nm + m²) per series-step. Otherwise every series runs the full filter.
@@ -153,7 +153,7 @@ fn series_parts<'a>(
     (y, u, x0, p0)
 }
 
-/// The data-independent covariance recursion, once: per step P H', s_factor S, log det S, P(t|t).
+/// The data-independent covariance recursion, once: per step P H', the L D L' factor of S, log det S, P(t|t).
 struct SharedGains {
     pht: Vec<f64>,
     s_factor: Vec<f64>,

@@ -180,7 +180,7 @@ pub(crate) struct Workspace {
     /// Components observed at this step, and how many (0 = no update).
     pub obs: Vec<usize>,
     pub m_obs: usize,
-    // Observed-block buffers (m_obs ≤ m): P H' (n × m_obs), Cholesky factor of S_o,
+    // Observed-block buffers (m_obs ≤ m): P H' (n × m_obs), L D L' factor of S_o,
     // H_o, R_o, N_o, K_o' (m_obs × n), e_o, S_o⁻¹ e_o.
     pht_full: Vec<f64>,
     pht: Vec<f64>,
@@ -243,7 +243,7 @@ impl Workspace {
     }
 
     /// The data-independent part of the last fully observed update: P H' (n × m), the
-    /// Cholesky factor of S (m × m) and log det S.
+    /// L D L' factor of S (m × m) and log det S.
     pub fn gains(&self) -> (&[f64], &[f64], f64) {
         (&self.pht[..self.n * self.m], &self.s_factor[..self.m * self.m], self.log_det)
     }
