@@ -163,7 +163,10 @@ impl<const N: usize, const M: usize> Local<N, M> {
                     row[i] += 1.0;
                 }
                 let mut ap = [[0.0; N]; N];
-                mul(ap.as_flattened_mut(), a.as_flattened(), p_pred, n, n, n);
+                mul_bt(ap.as_flattened_mut(), kgain.as_flattened(), self.pht.as_flattened(), n, m, n);
+                for (v, p) in ap.as_flattened_mut().iter_mut().zip(p_pred) {
+                    *v = p - *v;
+                }
                 mul_bt_sym(p_filt, ap.as_flattened(), a.as_flattened(), n, n);
                 let mut rk = [[0.0; N]; M];
                 mul(rk.as_flattened_mut(), sys.r.as_flattened(), gain_t, m, m, n);

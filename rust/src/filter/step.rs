@@ -369,7 +369,7 @@ impl Workspace {
                 }
             }
             UpdateForm::Joseph => {
-                // A = I − K H_o;  P(t|t) = A P A' + K R_o K'
+                // A = I − K H_o;  P(t|t) = (A P) A' + K R_o K'
                 let kgain = &mut self.nm_a[..n * mo];
                 transpose(kgain, gain_t, mo, n);
                 mul(&mut self.nn_a, kgain, &self.h_o[..mo * n], n, mo, n);
@@ -379,7 +379,11 @@ impl Workspace {
                 for i in 0..n {
                     self.nn_a[i * n + i] += 1.0;
                 }
-                mul(&mut self.nn_b, &self.nn_a, &self.p_pred, n, n, n);
+                // A P = P − K (H P) with H P = (P H')': n² m multiply-adds instead of n³
+                mul_bt(&mut self.nn_b, kgain, pht, n, mo, n);
+                for (v, p) in self.nn_b.iter_mut().zip(&self.p_pred) {
+                    *v = p - *v;
+                }
                 mul_bt_sym(&mut self.p_filt, &self.nn_b, &self.nn_a, n, n);
                 // K R_o K' = K (R_o K') with R_o K' = r_o · gain_t (mo × n)
                 mul(&mut self.mn_a[..mo * n], &self.r_o[..mo * mo], gain_t, mo, mo, n);
