@@ -563,6 +563,14 @@ def test_innovation_covariance_singular_at_step_0(how, form):
         batch(how, singular_model(), y=np.ones((T, 2)), x0=[0.0, 0.0], P0=np.zeros((2, 2)), form=form)
 
 
+def test_subnormal_innovation_covariance_is_an_error_not_nan():
+    """S = 2e-310 is positive but its reciprocal overflows: an error, never inf or NaN."""
+    s = 1e-310
+    model = kfast.LinearGaussian(np.eye(1), np.eye(1), np.eye(1) * s, np.eye(1) * s)
+    with fails(r"^innovation covariance S = H P H' \+ R at step 0 cannot be factorized", kfast.InnovationCovarianceError):
+        model.filter(np.array([[0.0]]), np.zeros(1), np.eye(1) * s)
+
+
 def test_innovation_covariance_error_is_a_kfast_error():
     with pytest.raises(kfast.KfastError, match=r"at step 0"):
         singular_model().loglik(np.ones((T, 2)), [0.0, 0.0], np.zeros((2, 2)))

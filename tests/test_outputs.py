@@ -113,3 +113,13 @@ def test_outputs_are_written_in_full_over_reused_memory():
         for a in arrays:
             assert not np.any(a == marker)
         np.testing.assert_array_equal(sm.P_lag1[0], 0.0)
+
+
+def test_outputs_names_must_be_strings():
+    case = case_for(1)
+    model = kfast.LinearGaussian(**case.model)
+    for bad in ([1], [b"x_smooth"], ["x_smooth", None]):
+        with pytest.raises(ValueError, match="outputs: expected field names"):
+            model.smooth(case.y, case.x0, case.P0, outputs=bad)
+        with pytest.raises(ValueError, match="outputs: expected field names"):
+            model.filter(case.y, case.x0, case.P0, outputs=bad)

@@ -457,7 +457,11 @@ def _output_names(outputs) -> Optional[list[str]]:
     """``outputs=``: None (everything), one name, or an iterable of names."""
     if outputs is None:
         return None
-    return [outputs] if isinstance(outputs, str) else list(outputs)
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    bad = [name for name in names if not isinstance(name, str)]
+    if bad:
+        raise _kfast.KfastError(f"outputs: expected field names (str), got {bad[0]!r}")
+    return names
 
 
 def _index(name: str, value) -> int:

@@ -201,7 +201,8 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 /// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
 /// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
 /// it was). A symmetric `a` is positive definite iff every `d_j > 0`; on failure returns the
-/// first `j` that is not (or not finite). Used for the innovation covariance S: with no square
+/// first `j` that is not, or is not a normal number (a subnormal pivot would make its
+/// reciprocal infinite). Used for the innovation covariance S: with no square
 /// roots its latency is one division per pivot, which bounds a small filter step.
 #[inline(always)]
 pub(crate) fn ldl(a: &mut [f64], n: usize) -> Result<(), usize> {
@@ -210,9 +211,8 @@ pub(crate) fn ldl(a: &mut [f64], n: usize) -> Result<(), usize> {
         for l in 0..j {
             d -= a[j * n + l] * (a[j * n + l] * a[l * n + l]);
         }
-        // NaN fails `d > 0`.
-        let positive = d > 0.0 && d.is_finite();
-        if !positive {
+        // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
+        if !(d >= f64::MIN_POSITIVE && d.is_finite()) {
             return Err(j);
         }
         a[j * n + j] = d;
@@ -331,6 +331,8 @@ mod tests {
         assert!((ldl_log_det(&f, 3) - 44.8f64.ln()).abs() < 1e-12);
         let mut indefinite = [1.0, 2.0, 2.0, 1.0];
         assert_eq!(ldl(&mut indefinite, 2), Err(1));
+        let mut subnormal = [1e-310];
+        assert_eq!(ldl(&mut subnormal, 1), Err(0));
     }
 
     #[test]

@@ -83,6 +83,9 @@ pub(crate) fn rts_in_place(
     mut p_lag1: Option<&mut [f64]>,
 ) -> Result<()> {
     let (n, m) = (model.n_states(), model.n_obs());
+    if x.is_empty() {
+        return Ok(());
+    }
     if let Some(l) = p_lag1.as_deref_mut() {
         l[..n * n].fill(0.0);
     }
