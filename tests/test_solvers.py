@@ -133,6 +133,27 @@ def test_solvers_are_fast_enough_to_be_direct():
     assert np.abs(a @ Y @ a.T - Y + np.eye(100)).max() / np.abs(Y).max() <= 1e-10
 
 
+def ill_conditioned_dare(seed, n=7):
+    """r = 1e-6, a with a zero column and spectral radius above 1, q of rank one: doubling
+    alone leaves a relative residual of 1e-3 to 1e-7 on such problems."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, n)) * 1.5
+    a[:, 0] = 0
+    b = rng.normal(size=(n, 1))
+    q = np.zeros((n, n))
+    q[0, 0] = 1.0
+    return a, b, q, np.eye(1) * 1e-6
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_doubling_is_refined_on_ill_conditioned_problems(seed):
+    a, b, q, r = ill_conditioned_dare(seed)
+    sol = dare(a, b, q, r)
+    assert dare_residual(a, b, q, r, None, None, sol["x"]) <= 1e-10
+    assert sol["residual"] <= 1e-10
+    np.testing.assert_allclose(sol["x"], dare(a, b, q, r, method="newton")["x"], rtol=1e-8, atol=1e-8 * np.abs(sol["x"]).max())
+
+
 def test_no_stabilizing_solution_raises():
     # (a, b) not stabilizable: an unstable mode the input cannot reach.
     a = np.diag([2.0, 0.5])

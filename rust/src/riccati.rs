@@ -28,6 +28,7 @@ use crate::lyapunov::{checked_mat, from_mat, solve_continuous_lyapunov, solve_di
 pub enum DareMethod {
     /// Structure-preserving doubling (ex. 6.24): quadratic convergence, no inverse of a.
     /// Needs r invertible; with a singular r it falls back to `Iteration` refined by `Newton`.
+    /// A solution whose relative residual exceeds 1e-12 is refined by up to three Newton steps.
     #[default]
     Doubling,
     /// Newton–Hewer (ex. 6.23): one Lyapunov solve per step from a stabilizing gain (K = 0
@@ -184,8 +185,22 @@ pub fn solve_discrete_are(
             return Err(Error::arg("r", "must be invertible for method \"eigen\" (use \"doubling\" or \"iteration\")"))
         }
     };
-    finish_dare(&p, sym(&x), iterations)
+    let solution = finish_dare(&p, sym(&x), iterations)?;
+    if method != DareMethod::Doubling || solution.residual <= REFINE_ABOVE {
+        return Ok(solution);
+    }
+    // Doubling loses digits on ill-conditioned problems (e.g. r = 1e-6 with a singular a:
+    // relative residual 1e-3): Newton steps from its stabilizing solution restore them.
+    let refined = newton(&p, to_mat(&solution.x, n), 3)
+        .and_then(|(x, more)| finish_dare(&p, sym(&x), solution.iterations + more));
+    Ok(match refined {
+        Ok(better) if better.residual < solution.residual => better,
+        _ => solution,
+    })
 }
+
+/// Relative residual above which a doubling solution is refined by Newton steps.
+const REFINE_ABOVE: f64 = 1e-12;
 
 /// K = (b'Xb + r)⁻¹(b'Xa + s') for the reduced problem.
 fn dare_gain(p: &Problem, x: &Mat<f64>) -> Option<Mat<f64>> {
