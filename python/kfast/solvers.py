@@ -31,8 +31,9 @@ def _optional(name, value):
 def solve_discrete_are(a, b, q, r, e=None, s=None, method: str = "doubling", balanced=None) -> np.ndarray:
     """The stabilizing X of a'Xa - e'Xe - (a'Xb + s)(b'Xb + r)^-1 (b'Xa + s') + q = 0.
 
-    methods: "doubling" (structure-preserving doubling, default; needs r invertible and
-    falls back to "iteration" refined by Newton when r is singular), "newton" (Newton-Hewer,
+    methods: "doubling" (structure-preserving doubling, default, refined by Newton steps
+    when its relative residual exceeds 1e-12; needs r invertible and falls back to
+    "iteration" refined by Newton when r is singular), "newton" (Newton-Hewer,
     Söderström ex. 6.23), "iteration" (Riccati iteration (6.90); singular r allowed),
     "eigen" (eigenvectors of the symplectic matrix, Söderström 6.8). Raises
     ``kfast.NoStabilizingSolutionError`` when there is no stabilizing solution instead of
