@@ -657,6 +657,15 @@ def _best(cs, group, exclude=()):
     return min(ok, key=lambda c: c.ns_per_step()) if ok else None
 
 
+def _save(plt, fig, name):
+    """Writes `fig` to benches/plots/`name` and closes it; returns the path."""
+    fig.tight_layout()
+    p = os.path.join(PLOTS, name)
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
 def make_plots(results, log):
     try:
         import matplotlib
@@ -687,11 +696,7 @@ def make_plots(results, log):
         ax.set_xticklabels([str(r["n"]) for r in rows])
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        p = os.path.join(PLOTS, "w8_scaling.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        made.append(p)
+        made.append(_save(plt, fig, "w8_scaling.png"))
     # bar chart: W1-W5, kfast vs C loop vs best peer
     kname = {"W1": "kfast joseph", "W2": "kfast smooth joseph", "W3": "kfast loglik",
              "W4": "kfast exact", "W5": "kfast batch"}
@@ -734,11 +739,7 @@ def make_plots(results, log):
                      fontsize=9)
         ax.grid(True, axis="y", which="both", alpha=0.3)
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        p = os.path.join(PLOTS, "w1_w5_bars.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        made.append(p)
+        made.append(_save(plt, fig, "w1_w5_bars.png"))
     for p in made:
         log(f"wrote {p}")
     return made

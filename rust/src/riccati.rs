@@ -229,83 +229,74 @@ fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
     let a0 = from_mat(&(&p.a - &p.b * &rs));
     let g0 = from_mat(&sym(&(&p.b * r_inv * p.b.transpose())));
     let h0 = from_mat(&sym(&(&p.q - &p.s * &rs)));
-    let start = Start { a: &a0, g: &g0, h: &h0 };
     // Compile-time sizes for small n, so that the loops unroll and the iterates stay local.
     let (x, it) = match n {
-        1 => start.doubling(Fixed::<1, 1>),
-        2 => start.doubling(Fixed::<2, 1>),
-        3 => start.doubling(Fixed::<3, 1>),
-        4 => start.doubling(Fixed::<4, 1>),
-        6 => start.doubling(Fixed::<6, 1>),
-        8 => start.doubling(Fixed::<8, 1>),
-        _ => start.doubling(Dyn { n, m: 1 }),
+        1 => doubling_loop(Fixed::<1, 1>, &a0, &g0, &h0),
+        2 => doubling_loop(Fixed::<2, 1>, &a0, &g0, &h0),
+        3 => doubling_loop(Fixed::<3, 1>, &a0, &g0, &h0),
+        4 => doubling_loop(Fixed::<4, 1>, &a0, &g0, &h0),
+        6 => doubling_loop(Fixed::<6, 1>, &a0, &g0, &h0),
+        8 => doubling_loop(Fixed::<8, 1>, &a0, &g0, &h0),
+        _ => doubling_loop(Dyn { n, m: 1 }, &a0, &g0, &h0),
     }?;
     Ok((to_mat(&x, n), it))
 }
 
-/// The starting A, G, H of the doubling iteration, row-major.
-struct Start<'a> {
-    a: &'a [f64],
-    g: &'a [f64],
-    h: &'a [f64],
-}
-
-impl Start<'_> {
-    fn doubling<D: Dims>(&self, d: D) -> Result<(Vec<f64>, usize)> {
-        let n = d.n();
-        let (mut ak, mut gk, mut hk) = (d.square(), d.square(), d.square());
-        ak.get_mut().copy_from_slice(self.a);
-        gk.get_mut().copy_from_slice(self.g);
-        hk.get_mut().copy_from_slice(self.h);
-        let (mut w, mut v1, mut v2, mut tmp, mut at, mut next) =
-            (d.square(), d.square(), d.square(), d.square(), d.square(), d.square());
-        let mut piv = vec![0; n];
-        let mut previous = f64::INFINITY;
-        for it in 1..=100 {
-            let (a, g, h) = (ak.get_mut(), gk.get_mut(), hk.get_mut());
-            let w = w.get_mut();
-            mul(w, g, h, n, n, n);
-            for i in 0..n {
-                w[i * n + i] += 1.0;
-            }
-            let (v1, v2, tmp, at, next) = (v1.get_mut(), v2.get_mut(), tmp.get_mut(), at.get_mut(), next.get_mut());
-            v1.copy_from_slice(a);
-            v2.copy_from_slice(g);
-            solve_twice(w, &mut piv, v1, v2, n);
-            // G + A V2 A'
-            mul(tmp, a, v2, n, n, n);
-            mul_bt(next, tmp, a, n, n, n);
-            for (gi, di) in g.iter_mut().zip(next.iter()) {
-                *gi += di;
-            }
-            symmetrize(g, n);
-            // H + A' H V1
-            mul(tmp, h, v1, n, n, n);
-            transpose(at, a, n, n);
-            mul(next, at, tmp, n, n, n);
-            let (mut change, mut size) = (0.0f64, 0.0f64);
-            for (hi, di) in h.iter_mut().zip(next.iter()) {
-                *hi += di;
-                change = change.max(di.abs());
-            }
-            symmetrize(h, n);
-            // A V1
-            mul(next, a, v1, n, n, n);
-            a.copy_from_slice(next);
-            for v in h.iter() {
-                size = size.max(v.abs());
-            }
-            if !h.iter().chain(a.iter()).all(|v| v.is_finite()) {
-                return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
-            }
-            let a_size = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
-            if converged(change, previous, size) || a_size <= 1e-300 {
-                return Ok((h.to_vec(), it));
-            }
-            previous = change;
+/// The doubling iteration from row-major A, G, H; returns H at convergence (= X).
+fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(Vec<f64>, usize)> {
+    let n = d.n();
+    let (mut ak, mut gk, mut hk) = (d.square(), d.square(), d.square());
+    ak.get_mut().copy_from_slice(a0);
+    gk.get_mut().copy_from_slice(g0);
+    hk.get_mut().copy_from_slice(h0);
+    let (mut w, mut v1, mut v2, mut tmp, mut at, mut next) =
+        (d.square(), d.square(), d.square(), d.square(), d.square(), d.square());
+    let mut piv = vec![0; n];
+    let mut previous = f64::INFINITY;
+    for it in 1..=100 {
+        let (a, g, h) = (ak.get_mut(), gk.get_mut(), hk.get_mut());
+        let w = w.get_mut();
+        mul(w, g, h, n, n, n);
+        for i in 0..n {
+            w[i * n + i] += 1.0;
         }
-        Err(no_solution("the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)"))
+        let (v1, v2, tmp, at, next) = (v1.get_mut(), v2.get_mut(), tmp.get_mut(), at.get_mut(), next.get_mut());
+        v1.copy_from_slice(a);
+        v2.copy_from_slice(g);
+        solve_twice(w, &mut piv, v1, v2, n);
+        // G + A V2 A'
+        mul(tmp, a, v2, n, n, n);
+        mul_bt(next, tmp, a, n, n, n);
+        for (gi, di) in g.iter_mut().zip(next.iter()) {
+            *gi += di;
+        }
+        symmetrize(g, n);
+        // H + A' H V1
+        mul(tmp, h, v1, n, n, n);
+        transpose(at, a, n, n);
+        mul(next, at, tmp, n, n, n);
+        let (mut change, mut size) = (0.0f64, 0.0f64);
+        for (hi, di) in h.iter_mut().zip(next.iter()) {
+            *hi += di;
+            change = change.max(di.abs());
+        }
+        symmetrize(h, n);
+        // A V1
+        mul(next, a, v1, n, n, n);
+        a.copy_from_slice(next);
+        for v in h.iter() {
+            size = size.max(v.abs());
+        }
+        if !h.iter().chain(a.iter()).all(|v| v.is_finite()) {
+            return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
+        }
+        let a_size = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        if converged(change, previous, size) || a_size <= 1e-300 {
+            return Ok((h.to_vec(), it));
+        }
+        previous = change;
     }
+    Err(no_solution("the doubling iteration did not converge in 100 steps (eigenvalues on the unit circle?)"))
 }
 
 /// Solves `W X = V` in place for `v1` and `v2` (n × n each) with one LU of `w`: the small
