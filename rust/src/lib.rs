@@ -40,33 +40,29 @@
 //! assert!((res.p_pred[0] - 1.0).abs() < 1e-12); // Söderström ex. 6.17: P = 1 is stationary
 //! ```
 
-pub mod batch;
-mod dense;
+mod core;
 pub mod error;
-pub mod filter;
-pub mod forecast;
-pub mod lyapunov;
-pub mod model;
+pub mod linear;
 #[cfg(feature = "python")]
 mod python;
 pub mod riccati;
 pub mod sampling;
-mod schur;
-pub mod simulate;
-pub mod smoother;
 
-pub use batch::{filter_batch, Batch, BatchOutputs};
+pub use self::core::Series;
 pub use error::{Error, Result};
-pub use filter::{
-    filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, Series, UpdateForm,
+pub use linear::batch::{filter_batch, Batch, BatchOutputs};
+pub use linear::filter::{
+    filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, UpdateForm,
 };
-pub use forecast::{forecast, Forecast};
-pub use lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov, stationary_covariance};
-pub use model::{LinearGaussian, Matrices, StepMatrix};
-pub use riccati::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiSolution};
-pub use sampling::{discretize, discretize_steps, expm, Discretized};
-pub use simulate::propagate;
-pub use smoother::{
+pub use linear::forecast::{forecast, Forecast};
+pub use linear::model::{LinearGaussian, Matrices, StepMatrix};
+pub use linear::simulate::propagate;
+pub use linear::smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagResult, FixedLagSmoother, FixedPointResult,
     SmoothOutputs, SmootherResult,
 };
+pub use riccati::{
+    solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,
+    stationary_covariance, DareMethod, RiccatiSolution,
+};
+pub use sampling::{discretize, discretize_steps, expm, Discretized};

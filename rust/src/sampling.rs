@@ -14,8 +14,8 @@
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
+use crate::core::mat::{checked_mat, from_mat, to_mat};
 use crate::error::{Error, Result};
-use crate::lyapunov::{checked_mat, from_mat, to_mat};
 
 const PADE13: [f64; 14] = [
     64_764_752_532_480_000.0,
@@ -97,7 +97,7 @@ fn continuous_model(
     k: usize,
 ) -> Result<(Mat<f64>, Mat<f64>, Option<Mat<f64>>)> {
     let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
-    crate::model::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
+    crate::core::validate::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
     Ok((am, qm, b.map(|b| checked_mat("B", b, n, k)).transpose()?))
 }
 
@@ -126,7 +126,7 @@ fn discretize_mat(a: &Mat<f64>, qc: &Mat<f64>, b: Option<&Mat<f64>>, dt: f64) ->
     let e12 = Mat::from_fn(n, n, |i, j| e[(i, n + j)]);
     let qd = &f * &e12;
     let mut qd_v = from_mat(&qd);
-    crate::dense::symmetrize(&mut qd_v, n);
+    crate::core::dense::symmetrize(&mut qd_v, n);
     let bd = match b {
         Some(b) => {
             // exp(dt [[A, B], [0, 0]]) = [[F, Bd], [0, I]]

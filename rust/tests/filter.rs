@@ -633,9 +633,9 @@ fn missing_u_for_a_model_with_b_is_invalid_argument() {
 
 #[test]
 fn rts_into_accepts_zero_steps() {
-    use kfast::smoother::{rts_into, FilteredView, SmootherOutputs};
+    use kfast::linear::smoother::{rts_into, FilteredView, RtsOutputs};
     let model = scalar_model(0.8, 1.0, 0.68, 1.0);
     let view = FilteredView { x_pred: &[], p_pred: &[], x_filt: &[], p_filt: &[], gain: &[] };
-    let out = SmootherOutputs { x_smooth: &mut [], p_smooth: &mut [], p_lag1: &mut [] };
+    let out = RtsOutputs { x_smooth: &mut [], p_smooth: &mut [], p_lag1: &mut [] };
     assert!(rts_into(&model, 0, view, out).is_ok());
 }

@@ -21,8 +21,8 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::PyDict;
 
 use crate::error::Error;
-use crate::filter::{FilterOutputs, Series, UpdateForm};
-use crate::smoother::SmoothOutputs;
+use crate::linear::filter::{FilterOutputs, Series, UpdateForm, FILTER_FIELDS};
+use crate::linear::smoother::SmoothOutputs;
 
 create_exception!(kfast, KfastError, PyValueError, "Invalid input to kfast (a ValueError).");
 create_exception!(
@@ -165,25 +165,16 @@ impl<'py> OutArrays<'py> {
     /// The filter's outputs named in `wanted` (all of [`FILTER_FIELDS`] when `None`), written
     /// in full by the filter.
     fn for_filter(py: Python<'py>, steps: usize, n: usize, m: usize, wanted: Option<&[String]>) -> PyResult<Self> {
-        let shape = |name: &str| -> Vec<usize> {
-            match name {
-                "x_pred" | "x_filt" => vec![steps, n],
-                "P_pred" | "P_filt" => vec![steps, n, n],
-                "innov" => vec![steps, m],
-                "S" => vec![steps, m, m],
-                "K" | "K_pred" => vec![steps, n, m],
-                "loglik_t" => vec![steps],
-                "x_next" => vec![n],
-                _ => vec![n, n], // P_next
-            }
-        };
-        if let Some(bad) = wanted.and_then(|w| w.iter().find(|name| !FILTER_FIELDS.contains(&name.as_str()))) {
-            return Err(KfastError::new_err(format!("outputs: unknown field {bad:?}; choose from {FILTER_FIELDS:?}")));
+        let is_field = |name: &str| FILTER_FIELDS.iter().any(|f| f.name == name);
+        if let Some(bad) = wanted.and_then(|w| w.iter().find(|name| !is_field(name))) {
+            let names: Vec<&str> = FILTER_FIELDS.iter().map(|f| f.name).collect();
+            return Err(KfastError::new_err(format!("outputs: unknown field {bad:?}; choose from {names:?}")));
         }
-        let names: Vec<&'static str> =
-            FILTER_FIELDS.iter().copied().filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f))).collect();
-        let shapes: Vec<Vec<usize>> = names.iter().map(|f| shape(f)).collect();
-        let specs: Vec<(&'static str, &[usize])> = names.iter().zip(&shapes).map(|(f, s)| (*f, s.as_slice())).collect();
+        let chosen: Vec<_> =
+            FILTER_FIELDS.iter().filter(|f| wanted.is_none_or(|w| w.iter().any(|x| x == f.name))).collect();
+        let shapes: Vec<Vec<usize>> = chosen.iter().map(|f| f.shape_for(steps, n, m)).collect();
+        let specs: Vec<(&'static str, &[usize])> =
+            chosen.iter().zip(&shapes).map(|(f, s)| (f.name, s.as_slice())).collect();
         Ok(Self::written_in_full(py, &specs))
     }
 
@@ -215,10 +206,6 @@ impl<'py> OutArrays<'py> {
     }
 }
 
-/// The fields of a FilterResult, in the order of [`FilterOutputs`].
-const FILTER_FIELDS: [&str; 11] =
-    ["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"];
-
 /// The fields a smoother adds to the filter's.
 const SMOOTH_FIELDS: [&str; 3] = ["x_smooth", "P_smooth", "P_lag1"];
 
@@ -232,21 +219,13 @@ fn outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> (FilterO
     let (mut out, mut sm) = (FilterOutputs::default(), SmoothOutputs::default());
     for (name, slice) in names.iter().zip(slices.iter_mut()) {
         let field = match *name {
-            "x_pred" => &mut out.x_pred,
-            "P_pred" => &mut out.p_pred,
-            "x_filt" => &mut out.x_filt,
-            "P_filt" => &mut out.p_filt,
-            "innov" => &mut out.innov,
-            "S" => &mut out.innovation_cov,
-            "K" => &mut out.gain,
-            "K_pred" => &mut out.gain_pred,
-            "loglik_t" => &mut out.loglik_t,
-            "x_next" => &mut out.x_next,
-            "P_next" => &mut out.p_next,
             "x_smooth" => &mut sm.x_smooth,
             "P_smooth" => &mut sm.p_smooth,
             "P_lag1" => &mut sm.p_lag1,
-            _ => continue,
+            _ => match out.slots().find(|(f, _)| f.name == *name) {
+                Some((_, slot)) => slot,
+                None => continue,
+            },
         };
         *field = Some(&mut **slice);
     }

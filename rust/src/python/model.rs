@@ -10,9 +10,9 @@ use super::{
     data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError, OutArrays,
     FILTER_FIELDS, SMOOTH_FIELDS,
 };
-use crate::filter::{self, FilterOptions};
-use crate::model::{self, Matrices, StepMatrix};
-use crate::smoother;
+use crate::linear::filter::{self, FilterOptions};
+use crate::linear::model::{self, Matrices, StepMatrix};
+use crate::linear::smoother;
 
 fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
     let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
@@ -146,10 +146,12 @@ impl PyLinearGaussian {
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
         let is_smooth = |name: &str| SMOOTH_FIELDS.contains(&name);
-        if let Some(bad) =
-            outputs.iter().flatten().find(|name| !is_smooth(name) && !FILTER_FIELDS.contains(&name.as_str()))
+        if let Some(bad) = outputs
+            .iter()
+            .flatten()
+            .find(|name| !is_smooth(name) && !FILTER_FIELDS.iter().any(|f| f.name == name.as_str()))
         {
-            let all: Vec<&str> = FILTER_FIELDS.iter().chain(&SMOOTH_FIELDS).copied().collect();
+            let all: Vec<&str> = FILTER_FIELDS.iter().map(|f| f.name).chain(SMOOTH_FIELDS).collect();
             return Err(KfastError::new_err(format!("outputs: unknown field {bad:?}; choose from {all:?}")));
         }
         let wanted_filter: Option<Vec<String>> =
@@ -322,7 +324,7 @@ pub(super) fn filter_batch<'py>(
         p0: P0.as_slice().map_err(|_| KfastError::new_err("P0: array is not contiguous"))?,
         form,
     };
-    let shared = crate::batch::shares_covariances(&model, &batch);
+    let shared = crate::linear::batch::shares_covariances(&model, &batch);
     let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
     if return_covs {
         specs.push(("P_filt", if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] }));

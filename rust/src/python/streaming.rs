@@ -9,9 +9,9 @@ use pyo3::prelude::*;
 
 use super::model::PyLinearGaussian;
 use super::{as_float64, non_negative, parse_form, prior, slice, to_array, vector, KfastError};
-use crate::filter::{self, UpdateForm};
-use crate::model::LinearGaussian;
-use crate::smoother::FixedLagSmoother;
+use crate::linear::filter::{self, UpdateForm};
+use crate::linear::model::LinearGaussian;
+use crate::linear::smoother::FixedLagSmoother;
 
 /// The Rust model behind `model` (a `kfast.LinearGaussian` or its compiled core), and the
 /// prior as float64 vectors (scalars accepted for n = 1).

@@ -10,10 +10,11 @@
 
 use rayon::prelude::*;
 
+use crate::core::dims::{with_dims, Dims, Dyn};
+use crate::core::Series;
 use crate::error::{Error, Result};
-use crate::filter::step::Dims;
-use crate::filter::{check_data, check_series, start, with_dims, FilterOutputs, Run, Series, UpdateForm, Workspace};
-use crate::model::LinearGaussian;
+use crate::linear::filter::{check_data, check_series, FilterOutputs, Run, UpdateForm, Workspace};
+use crate::linear::model::LinearGaussian;
 
 /// Series `(B, T, m)`, inputs, priors and options of a batch.
 #[derive(Debug, Clone, Copy)]
@@ -163,7 +164,7 @@ struct SharedGains {
 
 fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
     let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
-    let mut ws = start(model, &vec![0.0; n], b.p0);
+    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), &vec![0.0; n], b.p0);
     let zeros = vec![0.0; m];
     let zeros_u = vec![0.0; model.n_inputs()];
     let mut g = SharedGains {
@@ -175,55 +176,63 @@ fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
     let u = model.has_input().then_some(zeros_u.as_slice());
     for step in 0..t {
         let sys = model.at(step);
-        ws.update(ws.dims(), &sys, &zeros, u, b.form, step)?;
+        ws.update(&sys, &zeros, u, b.form, step)?;
         let (pht, s_factor, log_det) = ws.gains();
         g.pht.extend_from_slice(pht);
         g.s_factor.extend_from_slice(s_factor);
         g.log_det.push(log_det);
-        g.p_filt.extend_from_slice(&ws.p_filt);
-        ws.predict(ws.dims(), &sys, u);
+        g.p_filt.extend_from_slice(ws.p_filt());
+        ws.predict(&sys, u);
     }
     Ok(g)
 }
 
 fn run_shared(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Result<()> {
-    let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
+    let (n, m) = (model.n_states(), model.n_obs());
     let gains = shared_gains(model, b)?;
     if let Some(p) = out.p_filt {
         p.copy_from_slice(&gains.p_filt);
     }
-    let rows = out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).enumerate();
+    with_dims!(n, m, |d| means_only_all(d, model, b, &gains, out.x_filt, out.loglik));
+    Ok(())
+}
+
+/// Every series' state recursion with the shared gains, in parallel.
+fn means_only_all<D: Dims>(
+    d: D,
+    model: &LinearGaussian,
+    b: &Batch<'_>,
+    gains: &SharedGains,
+    x_filt: &mut [f64],
+    loglik: &mut [f64],
+) {
+    let (n, t) = (d.n(), b.steps);
+    let rows = x_filt.par_chunks_mut(t * n).zip(loglik.par_iter_mut()).enumerate();
     rows.for_each_init(
-        || Workspace::new(n, m, model.n_inputs()),
+        || Workspace::new(d, model.n_inputs(), &vec![0.0; n], b.p0),
         |ws, (s, (x_out, ll))| {
             let (y, u, x0, _) = series_parts(model, b, s);
-            ws.x_pred.copy_from_slice(x0);
+            ws.set_state(x0, b.p0);
             let run = Run { model, y, u, form: b.form };
-            *ll = with_dims!(n, m, run.means_only(ws, &gains, x_out));
+            *ll = run.means_only(ws, gains, x_out);
         },
     );
-    Ok(())
 }
 
 impl Run<'_> {
     /// The state recursion of one series with the shared gains; returns its log-likelihood.
-    fn means_only<D: Dims>(&self, d: D, ws: &mut Workspace, g: &SharedGains, x_out: &mut [f64]) -> f64 {
-        let (n, m) = (d.n(), d.m());
+    fn means_only<D: Dims>(&self, ws: &mut Workspace<D>, g: &SharedGains, x_out: &mut [f64]) -> f64 {
+        let (n, m) = (self.model.n_states(), self.model.n_obs());
         let mut total = 0.0;
         for t in 0..self.y.steps() {
             let sys = self.model.at(t);
             let u_t = self.u.map(|u| u.row(t));
-            ws.load_gains(
-                &g.pht[t * n * m..(t + 1) * n * m],
-                &g.s_factor[t * m * m..(t + 1) * m * m],
-                g.log_det[t],
-                sys.n,
-            );
+            ws.load_gains(&g.pht[t * n * m..(t + 1) * n * m], &g.s_factor[t * m * m..(t + 1) * m * m], g.log_det[t]);
             // Never fails: the data are complete and the gains were computed already.
-            let _ = ws.update(d, &sys, self.y.row(t), u_t, self.form, t);
-            ws.predict(d, &sys, u_t);
-            total += ws.loglik_t;
-            x_out[t * n..(t + 1) * n].copy_from_slice(&ws.x_filt[..n]);
+            let _ = ws.update(&sys, self.y.row(t), u_t, self.form, t);
+            ws.predict(&sys, u_t);
+            total += ws.loglik_t();
+            x_out[t * n..(t + 1) * n].copy_from_slice(ws.x_filt());
         }
         total
     }
@@ -238,12 +247,10 @@ fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Res
     out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).zip(covs).enumerate().try_for_each(
         |(s, ((x_out, ll), p_out))| -> Result<()> {
             let (y, u, x0, p0) = series_parts(model, b, s);
-            let mut ws = start(model, x0, p0);
-            ws.want_gain_pred = false;
-            ws.want_gain = false;
             let run = Run { model, y, u, form: b.form };
-            let mut o = FilterOutputs { x_filt: Some(x_out), p_filt: p_out, ..Default::default() };
-            *ll = with_dims!(n, m, run.filter(&mut ws, &mut o)).map_err(|e| prefix_series(e, s))?;
+            let mut o = FilterOutputs::default();
+            (o.x_filt, o.p_filt) = (Some(x_out), p_out);
+            *ll = with_dims!(n, m, |d| run.filter(d, x0, p0, None, &mut o)).map_err(|e| prefix_series(e, s))?;
             Ok(())
         },
     )

@@ -8,10 +8,10 @@
 //! x[t+1] = F x[t] + B u[t] + w[t]
 //! ```
 
-use crate::dense::{mul_vec, mul_vec_add};
+use crate::core::dense::{mul_vec, mul_vec_add};
+use crate::core::Series;
 use crate::error::{Error, Result};
-use crate::filter::Series;
-use crate::model::LinearGaussian;
+use crate::linear::model::LinearGaussian;
 
 /// States `(T, n)` and outputs `(T, m)` driven by `w` `(T, n)`, `v` `(T, m)` and `u` `(T, k)`.
 pub fn propagate(
@@ -33,7 +33,7 @@ pub fn propagate(
             return Err(Error::arg("T", format!("is {steps} but the model's per-step matrices have {t}")));
         }
     }
-    crate::filter::check_input_series(model, u, steps)?;
+    crate::linear::validate::check_input_series(model, u, steps)?;
     let (mut xs, mut ys) = (vec![0.0; steps * n], vec![0.0; steps * m]);
     xs[..n].copy_from_slice(x_init);
     let mut next = vec![0.0; n];

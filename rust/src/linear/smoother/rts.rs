@@ -14,11 +14,11 @@
 //! that it needs no R⁻¹ and holds for singular R too. Missing data need nothing extra: K has
 //! zero columns for missing components.
 
-use crate::dense::{ldl, ldl_solve, mul, mul_bt, mul_sym, mul_vec_add, symmetrize, transpose};
+use crate::core::dense::{ldl, ldl_solve, mul, mul_bt, mul_sym, mul_vec_add, symmetrize, transpose};
+use crate::core::dims::with_dims;
+use crate::core::dims::{Buf, Dims};
 use crate::error::{Error, Result};
-use crate::filter::step::{Buf, Dims};
-use crate::filter::with_dims;
-use crate::model::LinearGaussian;
+use crate::linear::model::LinearGaussian;
 
 /// The filter outputs the backward pass reads (row-major, sizes as in [`crate::FilterResult`]).
 #[derive(Debug, Clone, Copy)]
@@ -32,7 +32,7 @@ pub struct FilteredView<'a> {
 
 /// Output buffers of [`rts_into`]: x_smooth `(T, n)`, p_smooth and p_lag1 `(T, n, n)`.
 #[derive(Debug)]
-pub struct SmootherOutputs<'a> {
+pub struct RtsOutputs<'a> {
     pub x_smooth: &'a mut [f64],
     pub p_smooth: &'a mut [f64],
     pub p_lag1: &'a mut [f64],
@@ -40,7 +40,7 @@ pub struct SmootherOutputs<'a> {
 
 /// The backward RTS pass over filter outputs for `steps` steps. `p_lag1[t]` is
 /// Cov(x[t], x[t−1] | all data) for t ≥ 1; `p_lag1[0]` is zero (there is no x[−1]).
-pub fn rts_into(model: &LinearGaussian, steps: usize, filt: FilteredView<'_>, out: SmootherOutputs<'_>) -> Result<()> {
+pub fn rts_into(model: &LinearGaussian, steps: usize, filt: FilteredView<'_>, out: RtsOutputs<'_>) -> Result<()> {
     let (n, m) = (model.n_states(), model.n_obs());
     let nn = n * n;
     for (arg, got, want) in [
@@ -90,7 +90,7 @@ pub(crate) fn rts_in_place(
         l[..n * n].fill(0.0);
     }
     let pass = Backward { model, priors };
-    with_dims!(n, m, pass.run(x, p, p_lag1))
+    with_dims!(n, m, |d| pass.run(d, x, p, p_lag1))
 }
 
 struct Backward<'a> {

@@ -5,9 +5,12 @@
 use std::sync::Arc;
 
 use super::past::{PastState, Scratch};
+use crate::core::dims::Dyn;
+use crate::core::Series;
 use crate::error::{Error, Result};
-use crate::filter::{check_data, start, Series, UpdateForm, Workspace};
-use crate::model::LinearGaussian;
+use crate::linear::filter::step::LastUpdate;
+use crate::linear::filter::{check_data, UpdateForm, Workspace};
+use crate::linear::model::LinearGaussian;
 use crate::KalmanFilter;
 
 /// The last `lag + 1` states x̂(t−i|t), i = 0..lag, as the filter advances.
@@ -25,21 +28,21 @@ impl LagWindow {
     }
 
     /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
-    fn begin_step(&mut self, ws: &Workspace) {
+    fn begin_step(&mut self, ws: &Workspace<Dyn>) {
         self.slots.rotate_right(1);
-        self.slots[0].start(ws);
+        self.slots[0].start(ws.x_pred(), ws.p_pred());
         self.len = (self.len + 1).min(self.slots.len());
     }
 
-    fn update(&mut self, ws: &Workspace) {
+    fn update(&mut self, last: &LastUpdate<'_>) {
         for slot in &mut self.slots[..self.len] {
-            slot.update(ws, &mut self.scratch);
+            slot.update(last, &mut self.scratch);
         }
     }
 
     /// After the filter's time update at t (with F[t], H[t]): advance every cross covariance.
-    fn end_step(&mut self, f: &[f64], h: &[f64], ws: &Workspace) {
-        self.scratch.set_closed_loop(f, h, ws);
+    fn end_step(&mut self, f: &[f64], h: &[f64], ws: &Workspace<Dyn>) {
+        self.scratch.set_closed_loop(f, h, ws.gain_pred());
         for slot in &mut self.slots[..self.len] {
             slot.advance(&mut self.scratch);
         }
@@ -96,7 +99,7 @@ pub fn smooth_fixed_lag_into(
     let (n, m) = (model.n_states(), model.n_obs());
     check_len("x_smooth", x_out, steps * n)?;
     check_len("P_smooth", p_out, steps * n * n)?;
-    let mut ws = start(model, x0, p0);
+    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), x0, p0);
     let mut window = LagWindow::new(n, m, lag.min(steps - 1));
     let emit = |s: usize, slot: &PastState, x_out: &mut [f64], p_out: &mut [f64]| {
         x_out[s * n..(s + 1) * n].copy_from_slice(&slot.x);
@@ -105,13 +108,13 @@ pub fn smooth_fixed_lag_into(
     for t in 0..steps {
         let sys = model.at(t);
         let u_t = u.map(|u| u.row(t));
-        ws.update(ws.dims(), &sys, y.row(t), u_t, form, t)?;
+        ws.update(&sys, y.row(t), u_t, form, t)?;
         window.begin_step(&ws);
-        window.update(&ws);
+        window.update(&ws.last_update(sys.h));
         if window.len == window.slots.len() {
             emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
         }
-        ws.predict(ws.dims(), &sys, u_t);
+        ws.predict(&sys, u_t);
         window.end_step(sys.f, sys.h, &ws);
     }
     // The last states have less than `lag` steps of data after them: x̂(T−1−i | T−1).
@@ -154,25 +157,25 @@ pub fn smooth_fixed_point(
     let (n, m) = (model.n_states(), model.n_obs());
     let rows = steps - t_point;
     let mut res = FixedPointResult { t_point, x: vec![0.0; rows * n], p: vec![0.0; rows * n * n] };
-    let mut ws = start(model, x0, p0);
+    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), x0, p0);
     let mut past = PastState::new(n);
     let mut scratch = Scratch::new(n, m);
     for t in 0..steps {
         let sys = model.at(t);
         let u_t = u.map(|u| u.row(t));
-        ws.update(ws.dims(), &sys, y.row(t), u_t, form, t)?;
+        ws.update(&sys, y.row(t), u_t, form, t)?;
         if t >= t_point {
             if t == t_point {
-                past.start(&ws);
+                past.start(ws.x_pred(), ws.p_pred());
             }
-            past.update(&ws, &mut scratch);
+            past.update(&ws.last_update(sys.h), &mut scratch);
             let j = t - t_point;
             res.x[j * n..(j + 1) * n].copy_from_slice(&past.x);
             res.p[j * n * n..(j + 1) * n * n].copy_from_slice(&past.p);
         }
-        ws.predict(ws.dims(), &sys, u_t);
+        ws.predict(&sys, u_t);
         if t >= t_point {
-            scratch.set_closed_loop(sys.f, sys.h, &ws);
+            scratch.set_closed_loop(sys.f, sys.h, ws.gain_pred());
             past.advance(&mut scratch);
         }
     }
@@ -207,8 +210,9 @@ impl FixedLagSmoother {
     pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
         self.filter.update(y, u)?;
         let ws = self.filter.workspace();
+        let sys = self.filter.model().at(self.filter.t());
         self.window.begin_step(ws);
-        self.window.update(ws);
+        self.window.update(&ws.last_update(sys.h));
         Ok(())
     }
 

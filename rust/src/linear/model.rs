@@ -9,6 +9,7 @@
 //! leave: `F[t], B[t], Q[t], N[t]` take `x[t]` to `x[t+1]`; `H[t], D[t], R[t]` produce `y[t]`.
 //! The model is validated once, when it is built; the filters then trust it.
 
+use crate::core::validate::{check_psd, check_symmetric};
 use crate::error::{Error, Result};
 
 /// A matrix that is either constant over time or given per step (a stack of `steps` matrices),
@@ -123,52 +124,11 @@ impl StepMatrix {
             let start = t.unwrap_or(0) * size;
             let a = &mut self.data[start..start + size];
             check_symmetric(a, n).map_err(|p| Error::arg(arg, p).at_step(t))?;
-            crate::dense::symmetrize(a, n);
+            crate::core::dense::symmetrize(a, n);
             check_psd(a, n).map_err(|p| Error::arg(arg, p).at_step(t))?;
         }
         Ok(())
     }
-}
-
-/// Tolerance, relative to the largest entry, for symmetry and semidefiniteness checks.
-const COV_RTOL: f64 = 1e-10;
-
-/// `Err(problem)` unless `a[n×n]` is symmetric to `COV_RTOL` relative to its largest entry.
-pub(crate) fn check_symmetric(a: &[f64], n: usize) -> std::result::Result<(), String> {
-    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
-    for i in 0..n {
-        for j in 0..i {
-            let diff = (a[i * n + j] - a[j * n + i]).abs();
-            if diff > COV_RTOL * scale {
-                return Err(format!(
-                    "not symmetric: entry ({i}, {j}) is {} but ({j}, {i}) is {}",
-                    a[i * n + j],
-                    a[j * n + i]
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// `Err(problem)` unless the symmetric `a[n×n]` is positive semidefinite, i.e. its smallest
-/// eigenvalue is ≥ −`COV_RTOL` · (largest absolute eigenvalue).
-pub(crate) fn check_psd(a: &[f64], n: usize) -> std::result::Result<(), String> {
-    if n == 0 {
-        return Ok(());
-    }
-    if n == 1 {
-        return if a[0] >= 0.0 { Ok(()) } else { Err(format!("not positive semidefinite (value {})", a[0])) };
-    }
-    let mat = faer::Mat::<f64>::from_fn(n, n, |i, j| a[i * n + j]);
-    let eig =
-        mat.self_adjoint_eigenvalues(faer::Side::Lower).map_err(|_| "eigenvalues could not be computed".to_string())?;
-    let (lo, hi) = (eig[0], eig[n - 1]);
-    let scale = lo.abs().max(hi.abs());
-    if lo < -COV_RTOL * scale {
-        return Err(format!("not positive semidefinite (smallest eigenvalue {lo:.6e})"));
-    }
-    Ok(())
 }
 
 /// The model matrices, before validation. Start from [`Matrices::new`] and set the optional

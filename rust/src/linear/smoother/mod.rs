@@ -12,11 +12,12 @@ mod rts;
 pub use lagged::{
     smooth_fixed_lag, smooth_fixed_lag_into, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult,
 };
-pub use rts::{rts_into, FilteredView, SmootherOutputs};
+pub use rts::{rts_into, FilteredView, RtsOutputs};
 
+use crate::core::Series;
 use crate::error::{Error, Result};
-use crate::filter::{filter_into, FilterOutputs, FilterResult, Series, UpdateForm};
-use crate::model::LinearGaussian;
+use crate::linear::filter::{filter_into, FilterOutputs, FilterResult, UpdateForm};
+use crate::linear::model::LinearGaussian;
 use rts::{rts_in_place, Priors};
 
 /// The RTS smoother's results with the filter's.

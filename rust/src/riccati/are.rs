@@ -18,10 +18,11 @@
 use faer::linalg::solvers::Solve;
 use faer::{c64, Mat};
 
-use crate::dense::{lu_in_place, lu_solve, mul, mul_bt, symmetrize, transpose};
+use crate::core::dense::{lu_in_place, lu_solve, mul, mul_bt, symmetrize, transpose};
+use crate::core::dims::{Buf, Dims, Dyn, Fixed};
+use crate::core::mat::{checked_mat, from_mat, to_mat};
 use crate::error::{Error, Result};
-use crate::filter::step::{Buf, Dims, Dyn, Fixed};
-use crate::lyapunov::{checked_mat, from_mat, solve_continuous_lyapunov, solve_discrete_lyapunov, to_mat};
+use crate::riccati::lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov};
 
 /// How the DARE is solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -93,7 +94,7 @@ fn problem(
     let check = checked_mat;
     let (a, b, q, r) = (check("a", a, n, n)?, check("b", b, n, m)?, check("q", q, n, n)?, check("r", r, m, m)?);
     for (arg, mat, size) in [("q", &q, n), ("r", &r, m)] {
-        crate::model::check_symmetric(&from_mat(mat), size).map_err(|p| Error::arg(arg, p))?;
+        crate::core::validate::check_symmetric(&from_mat(mat), size).map_err(|p| Error::arg(arg, p))?;
     }
     let s = match s {
         Some(s) => check("s", s, n, m)?,

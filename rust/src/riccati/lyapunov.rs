@@ -13,37 +13,15 @@
 
 use faer::Mat;
 
+use crate::core::mat::{checked_mat, from_mat};
+use crate::core::schur::{real_schur, RealSchur};
 use crate::error::{Error, Result};
-use crate::schur::{real_schur, RealSchur};
 
 /// Which equation: `X − a X a' = q` or `a X + X a' = q`.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Discrete,
     Continuous,
-}
-
-/// The square row-major `a` (n × n) as a faer matrix.
-pub(crate) fn to_mat(a: &[f64], n: usize) -> Mat<f64> {
-    Mat::from_fn(n, n, |i, j| a[i * n + j])
-}
-
-/// A faer matrix as a row-major vector.
-pub(crate) fn from_mat(m: &Mat<f64>) -> Vec<f64> {
-    let (r, c) = (m.nrows(), m.ncols());
-    (0..r * c).map(|k| m[(k / c, k % c)]).collect()
-}
-
-/// The row-major `v` as a `rows × cols` faer matrix, after checking its size and that every
-/// entry is finite (`arg` names it in errors).
-pub(crate) fn checked_mat(arg: &'static str, v: &[f64], rows: usize, cols: usize) -> Result<Mat<f64>> {
-    if v.len() != rows * cols {
-        return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
-    }
-    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-        return Err(Error::arg(arg, format!("contains a non-finite value ({x})")));
-    }
-    Ok(Mat::from_fn(rows, cols, |i, j| v[i * cols + j]))
 }
 
 /// X solving X = a X a' + q (SciPy's `solve_discrete_lyapunov(a, q)`).
@@ -140,8 +118,8 @@ fn solve_with_schur(schur: &RealSchur, qm: &Mat<f64>, q: &[f64], kind: Kind) -> 
     }
     let x = z * &y * z.transpose();
     let mut out = from_mat(&x);
-    if crate::model::check_symmetric(q, n).is_ok() {
-        crate::dense::symmetrize(&mut out, n);
+    if crate::core::validate::check_symmetric(q, n).is_ok() {
+        crate::core::dense::symmetrize(&mut out, n);
     }
     Ok(out)
 }

@@ -14,8 +14,8 @@
 //! With N ≠ 0 only K_pred changes (it includes N), and missing components drop out of H, S
 //! and e exactly as in the filter.
 
-use crate::dense::{ldl_solve, mul, mul_bt, mul_vec_add, symmetrize, transpose};
-use crate::filter::Workspace;
+use crate::core::dense::{ldl_solve, mul, mul_bt, mul_vec_add, symmetrize, transpose};
+use crate::linear::filter::step::LastUpdate;
 
 /// x̂(s|t−1), P(s|t−1) and C = E[x̃(s|t−1) x̃(t|t−1)'] for one past time s.
 #[derive(Debug, Clone)]
@@ -48,10 +48,11 @@ impl Scratch {
         }
     }
 
-    /// `closed_loop = F − K_pred H` from the filter's step just made.
-    pub fn set_closed_loop(&mut self, f: &[f64], h: &[f64], ws: &Workspace) {
-        let (n, m) = (ws.n, ws.m);
-        mul(&mut self.closed_loop, &ws.gain_pred, h, n, m, n);
+    /// `closed_loop = F − K_pred H` from the filter's step just made (`gain_pred` is n × m).
+    pub fn set_closed_loop(&mut self, f: &[f64], h: &[f64], gain_pred: &[f64]) {
+        let n = self.n;
+        let m = gain_pred.len() / n;
+        mul(&mut self.closed_loop, gain_pred, h, n, m, n);
         for (a, fv) in self.closed_loop.iter_mut().zip(f) {
             *a = fv - *a;
         }
@@ -64,26 +65,26 @@ impl PastState {
     }
 
     /// Starts tracking s = t from the filter's prediction: x̂(t|t−1), P(t|t−1), C = P(t|t−1).
-    pub fn start(&mut self, ws: &Workspace) {
-        self.x.copy_from_slice(&ws.x_pred);
-        self.p.copy_from_slice(&ws.p_pred);
-        self.c.copy_from_slice(&ws.p_pred);
+    pub fn start(&mut self, x_pred: &[f64], p_pred: &[f64]) {
+        self.x.copy_from_slice(x_pred);
+        self.p.copy_from_slice(p_pred);
+        self.c.copy_from_slice(p_pred);
     }
 
     /// Measurement update with the filter's innovation at t (nothing if nothing was observed).
-    pub fn update(&mut self, ws: &Workspace, sc: &mut Scratch) {
-        let (n, mo) = (sc.n, ws.m_obs);
+    pub fn update(&mut self, last: &LastUpdate<'_>, sc: &mut Scratch) {
+        let (n, mo) = (sc.n, last.m_obs);
         if mo == 0 {
             return;
         }
         let cht = &mut sc.cht[..n * mo];
-        mul_bt(cht, &self.c, &ws.h_o[..mo * n], n, n, mo);
+        mul_bt(cht, &self.c, last.h, n, n, mo);
         // x̂(s|t) = x̂(s|t−1) + C H' (S⁻¹ e)
-        mul_vec_add(&mut self.x, cht, &ws.s_inv_e[..mo], n, mo);
+        mul_vec_add(&mut self.x, cht, last.s_inv_e, n, mo);
         // P(s|t) = P(s|t−1) − (C H') S⁻¹ (C H')'
         let w = &mut sc.s_inv_hct[..mo * n];
         transpose(w, cht, n, mo);
-        ldl_solve(&ws.s_factor[..mo * mo], w, mo, n);
+        ldl_solve(last.s_factor, w, mo, n);
         mul(&mut sc.nn, cht, w, n, mo, n);
         for (p, d) in self.p.iter_mut().zip(&sc.nn) {
             *p -= d;

@@ -11,10 +11,11 @@
 //! No data enter after the start, so N plays no part. Only constant models can be forecast
 //! (per-step matrices cover only the data).
 
-use crate::dense::{mul, mul_bt, mul_vec, mul_vec_add, symmetrize};
+use crate::core::dense::{mul, mul_bt, mul_vec, mul_vec_add, symmetrize};
+use crate::core::validate::check_prior;
+use crate::core::Series;
 use crate::error::{Error, Result};
-use crate::filter::{check_prior, Series};
-use crate::model::LinearGaussian;
+use crate::linear::model::LinearGaussian;
 
 /// Forecast means and covariances, row-major.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,7 +44,7 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
         Error::InvalidArgument { arg: "P0", step, problem } => Error::InvalidArgument { arg: "P", step, problem },
         other => other,
     })?;
-    crate::filter::check_input_series(model, u, steps)?;
+    crate::linear::validate::check_input_series(model, u, steps)?;
     let sys = model.at(0);
     let mut out = Forecast {
         x: vec![0.0; steps * n],

@@ -1,0 +1,12 @@
+//! The model-agnostic core shared by every family: small dense kernels, compile-time and
+//! run-time sizes, validators, faer bridging and the real Schur form.
+
+pub(crate) mod dense;
+pub(crate) mod dims;
+pub(crate) mod gaussian;
+pub(crate) mod mat;
+pub(crate) mod schur;
+pub(crate) mod series;
+pub(crate) mod validate;
+
+pub use series::Series;

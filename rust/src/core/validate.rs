@@ -1,0 +1,80 @@
+//! Validators shared by every family: each returns an error naming the argument (and the
+//! time step, where there is one) so that messages read like
+//! `P0: not positive semidefinite (smallest eigenvalue -2.5e-1)`.
+
+use crate::error::{Error, Result};
+
+/// Tolerance, relative to the largest entry, for symmetry and semidefiniteness checks.
+const COV_RTOL: f64 = 1e-10;
+
+/// `Err(problem)` unless `a[n×n]` is symmetric to `COV_RTOL` relative to its largest entry.
+pub(crate) fn check_symmetric(a: &[f64], n: usize) -> std::result::Result<(), String> {
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for i in 0..n {
+        for j in 0..i {
+            let diff = (a[i * n + j] - a[j * n + i]).abs();
+            if diff > COV_RTOL * scale {
+                return Err(format!(
+                    "not symmetric: entry ({i}, {j}) is {} but ({j}, {i}) is {}",
+                    a[i * n + j],
+                    a[j * n + i]
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `Err(problem)` unless the symmetric `a[n×n]` is positive semidefinite, i.e. its smallest
+/// eigenvalue is ≥ −`COV_RTOL` · (largest absolute eigenvalue).
+pub(crate) fn check_psd(a: &[f64], n: usize) -> std::result::Result<(), String> {
+    if n == 0 {
+        return Ok(());
+    }
+    if n == 1 {
+        return if a[0] >= 0.0 { Ok(()) } else { Err(format!("not positive semidefinite (value {})", a[0])) };
+    }
+    let mat = faer::Mat::<f64>::from_fn(n, n, |i, j| a[i * n + j]);
+    let eig =
+        mat.self_adjoint_eigenvalues(faer::Side::Lower).map_err(|_| "eigenvalues could not be computed".to_string())?;
+    let (lo, hi) = (eig[0], eig[n - 1]);
+    let scale = lo.abs().max(hi.abs());
+    if lo < -COV_RTOL * scale {
+        return Err(format!("not positive semidefinite (smallest eigenvalue {lo:.6e})"));
+    }
+    Ok(())
+}
+
+/// `y[t]` may hold NaN (missing) but not ±inf.
+pub(crate) fn check_observation(y: &[f64], step: Option<usize>) -> Result<()> {
+    if let Some(i) = y.iter().position(|v| v.is_infinite()) {
+        return Err(Error::arg("y", format!("component {i} is {} (missing values are NaN, inf is not allowed)", y[i]))
+            .at_step(step));
+    }
+    Ok(())
+}
+
+pub(crate) fn check_input_row(u: &[f64], step: Option<usize>) -> Result<()> {
+    if let Some(v) = u.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("u", format!("contains a non-finite value ({v})")).at_step(step));
+    }
+    Ok(())
+}
+
+/// x0 has n finite entries; P0 is a finite symmetric PSD n × n matrix.
+pub(crate) fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
+    if x0.len() != n {
+        return Err(Error::arg("x0", format!("expected {n} entries (the state size n), got {}", x0.len())));
+    }
+    if let Some(v) = x0.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("x0", format!("contains a non-finite value ({v})")));
+    }
+    if p0.len() != n * n {
+        return Err(Error::arg("P0", format!("expected an ({n}, {n}) matrix, got {} entries", p0.len())));
+    }
+    if let Some(v) = p0.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("P0", format!("contains a non-finite value ({v})")));
+    }
+    check_symmetric(p0, n).map_err(|p| Error::arg("P0", p))?;
+    check_psd(p0, n).map_err(|p| Error::arg("P0", p))
+}

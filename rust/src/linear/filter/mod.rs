@@ -1,0 +1,236 @@
+//! The Kalman filter over a whole series ([`filter`], [`loglik`]) and one step at a time
+//! ([`KalmanFilter`]).
+//!
+//! Conventions (docs/conventions.md): the prior `(x0, P0)` is `x̂(0|−1), P(0|−1)`, so the
+//! first operation is the measurement update with `y[0]`. `y` is `(T, m)` row-major; NaN marks
+//! a missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
+//! The recursion is Söderström Lemma 6.1 / (6.24) (see [`step`] for the equations).
+
+mod outputs;
+pub(crate) mod step;
+mod streaming;
+
+pub use outputs::{FilterOutputs, FilterResult, OutputField, FILTER_FIELDS};
+pub use step::UpdateForm;
+pub(crate) use step::Workspace;
+pub use streaming::KalmanFilter;
+
+use crate::core::dims::{with_dims, Buf, Dims};
+pub use crate::core::Series;
+use crate::error::Result;
+use crate::linear::model::{LinearGaussian, StepView};
+use crate::linear::validate::check_converge_tol;
+pub(crate) use crate::linear::validate::{check_data, check_series};
+
+/// How the filter runs: the covariance update form and whether to freeze the gains once the
+/// covariance has converged.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[non_exhaustive]
+pub struct FilterOptions {
+    /// Joseph (default) or standard covariance update.
+    pub form: UpdateForm,
+    /// Freeze P, S and the gains once ‖P(t+1|t) − P(t|t−1)‖_max ≤ tol · max(1, ‖P‖_max) at a
+    /// fully observed step (like statsmodels' steady-state switch); a missing value resumes
+    /// the full recursion until it has converged again. Then a step costs O(n² + nm + m²).
+    /// Off (`None`) by default; constant models only. With P0 the stationary P(t|t−1) and a
+    /// small tolerance this is the steady-state (constant-gain) filter that returns to the
+    /// stationary gains after a gap.
+    pub converge_tol: Option<f64>,
+}
+
+impl FilterOptions {
+    /// The given update form, no gain freezing.
+    pub fn new(form: UpdateForm) -> Self {
+        FilterOptions { form, converge_tol: None }
+    }
+
+    /// The same options with gains frozen once converged to `tol` (see the field).
+    pub fn converge_tol(self, tol: f64) -> Self {
+        FilterOptions { converge_tol: Some(tol), ..self }
+    }
+}
+
+impl From<UpdateForm> for FilterOptions {
+    fn from(form: UpdateForm) -> Self {
+        FilterOptions::new(form)
+    }
+}
+
+/// Runs the Kalman filter over `y` from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`.
+pub fn filter(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    options: impl Into<FilterOptions>,
+) -> Result<FilterResult> {
+    let mut res = FilterResult::zeros(y.steps(), model.n_states(), model.n_obs());
+    res.loglik = filter_into(model, y, u, x0, p0, options, res.outputs())?;
+    Ok(res)
+}
+
+/// [`filter`] writing into caller-owned buffers (e.g. NumPy arrays); returns the total
+/// log-likelihood. Allocates only its workspace, once.
+pub fn filter_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    options: impl Into<FilterOptions>,
+    mut out: FilterOutputs<'_>,
+) -> Result<f64> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let options = options.into();
+    let steps = check_data(model, y, u, x0, p0)?;
+    out.check_sizes(steps, n, m)?;
+    let converge_tol = check_converge_tol(model, options.converge_tol)?;
+    let run = Run { model, y, u, form: options.form };
+    with_dims!(n, m, |d| run.filter(d, x0, p0, converge_tol, &mut out))
+}
+
+/// The log-likelihood `Σ_t log p(y(t) | y(0..t−1))` alone (Söderström (6.142)), without
+/// storing any per-step output.
+pub fn loglik(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    options: impl Into<FilterOptions>,
+) -> Result<f64> {
+    filter_into(model, y, u, x0, p0, options, FilterOutputs::default())
+}
+
+/// One pass of the filter over the data (validated already).
+#[derive(Clone, Copy)]
+pub(crate) struct Run<'a> {
+    pub model: &'a LinearGaussian,
+    pub y: Series<'a>,
+    pub u: Option<Series<'a>>,
+    pub form: UpdateForm,
+}
+
+/// A constant model's F, H, Q, R and N copied once into buffers of the call's sizes (local
+/// arrays for compile-time sizes, which the compiler keeps in registers across the loop).
+struct LocalMatrices<D: Dims> {
+    f: D::Square,
+    h: D::StateObs,
+    q: D::Square,
+    r: D::ObsSquare,
+    n: Option<D::StateObs>,
+}
+
+impl<D: Dims> LocalMatrices<D> {
+    fn new(d: D, sys: &StepView<'_>) -> Self {
+        let copy = |mut buf: D::Square, src: &[f64]| {
+            buf.get_mut().copy_from_slice(src);
+            buf
+        };
+        let mut h = d.state_obs();
+        h.get_mut().copy_from_slice(sys.h);
+        let mut r = d.obs_square();
+        r.get_mut().copy_from_slice(sys.r);
+        let n = sys.n.map(|nn| {
+            let mut buf = d.state_obs();
+            buf.get_mut().copy_from_slice(nn);
+            buf
+        });
+        LocalMatrices { f: copy(d.square(), sys.f), h, q: copy(d.square(), sys.q), r, n }
+    }
+
+    /// The step's matrices: these, with B and D of `sys` (they only touch the mean).
+    #[inline(always)]
+    fn view<'a>(&'a self, sys: &StepView<'a>) -> StepView<'a> {
+        StepView {
+            f: self.f.get(),
+            h: self.h.get(),
+            q: self.q.get(),
+            r: self.r.get(),
+            b: sys.b,
+            d: sys.d,
+            n: self.n.as_ref().map(|nn| nn.get()),
+        }
+    }
+}
+
+impl Run<'_> {
+    /// The filter from the prior `(x0, p0)`, storing the outputs that are given; returns the
+    /// log-likelihood. On x86-64 CPUs with AVX2 the same code is compiled a second time for
+    /// them and chosen at run time (no fused multiply-adds, no reordered sums: results are the
+    /// same bits).
+    pub(crate) fn filter<D: Dims>(
+        &self,
+        d: D,
+        x0: &[f64],
+        p0: &[f64],
+        converge_tol: Option<f64>,
+        out: &mut FilterOutputs<'_>,
+    ) -> Result<f64> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.filter_avx2(d, x0, p0, converge_tol, out) };
+        }
+        self.filter_steps(d, x0, p0, converge_tol, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn filter_avx2<D: Dims>(
+        &self,
+        d: D,
+        x0: &[f64],
+        p0: &[f64],
+        converge_tol: Option<f64>,
+        out: &mut FilterOutputs<'_>,
+    ) -> Result<f64> {
+        self.filter_steps(d, x0, p0, converge_tol, out)
+    }
+
+    /// The workspace lives here, on this function's stack, for the whole loop.
+    #[inline(always)]
+    fn filter_steps<D: Dims>(
+        &self,
+        d: D,
+        x0: &[f64],
+        p0: &[f64],
+        converge_tol: Option<f64>,
+        out: &mut FilterOutputs<'_>,
+    ) -> Result<f64> {
+        let mut ws = Workspace::new(d, self.model.n_inputs(), x0, p0);
+        ws.configure(out.gain.is_some(), out.gain_pred.is_some(), converge_tol);
+        let total = if self.model.steps().is_none() {
+            let first = self.model.at(0);
+            let local = LocalMatrices::new(d, &first);
+            let sys = local.view(&first);
+            self.steps(&mut ws, out, |_| sys)?
+        } else {
+            self.steps(&mut ws, out, |t| self.model.at(t))?
+        };
+        out.store_next(ws.x_pred(), ws.p_pred());
+        Ok(total)
+    }
+
+    /// Update with `y[t]`, then the time update to `t + 1`, for every t.
+    #[inline(always)]
+    fn steps<'m, D: Dims>(
+        &self,
+        ws: &mut Workspace<D>,
+        out: &mut FilterOutputs<'_>,
+        at: impl Fn(usize) -> StepView<'m>,
+    ) -> Result<f64> {
+        let mut total = 0.0;
+        for t in 0..self.y.steps() {
+            let sys = at(t);
+            let u_t = self.u.map(|u| u.row(t));
+            out.store_prior(t, ws.x_pred(), ws.p_pred());
+            ws.update(&sys, self.y.row(t), u_t, self.form, t)?;
+            ws.predict(&sys, u_t);
+            total += ws.loglik_t();
+            out.store_step(t, ws);
+        }
+        Ok(total)
+    }
+}

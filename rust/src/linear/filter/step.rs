@@ -1,0 +1,461 @@
+//! One step of the Kalman filter for a linear model: how the model predicts the measurement
+//! (for the model-agnostic [`GaussianUpdate`]) and the time update, on a workspace allocated
+//! once per sequence so that the time loop allocates nothing.
+//!
+//! Söderström Lemma 6.1, (6.22)–(6.27) (docs/algorithms.md, "Linear filter"):
+//!
+//! ```text
+//! e = y − H x̂(t|t−1) − D u            S = H P(t|t−1) H' + R,   C = P(t|t−1) H'
+//! K = C S⁻¹                            x̂(t|t) = x̂(t|t−1) + K e
+//! P(t|t) = P − K S K'                   (standard)
+//!        = (I − K H) P (I − K H)' + K R K'    (Joseph form, valid for any gain)
+//! x̂(t+1|t) = F x̂(t|t) + B u + N S⁻¹ e
+//! P(t+1|t) = F P(t|t) F' + Q − N S⁻¹ N' − F K N' − N K' F'
+//! K_pred  = F K + N S⁻¹ = (F P H' + N) S⁻¹
+//! ```
+//!
+//! Missing data: only the observed components of y update (their rows of H, D, R and columns of
+//! N); a step with nothing observed skips the update and its time update has no N term.
+//!
+//! The workspace is generic over its [`Dims`]: with compile-time sizes every buffer is a local
+//! array the compiler keeps in registers, with run-time sizes a heap vector. The arithmetic is
+//! the same, so both give the same bits (which `filter_batch`'s shared recursion relies on).
+
+use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_vec, mul_vec_add, symmetrize, transpose};
+use crate::core::dims::{Buf, Dims};
+use crate::core::gaussian::{GaussianUpdate, MeasurementPrediction};
+use crate::error::Result;
+use crate::linear::model::StepView;
+
+pub use crate::core::gaussian::UpdateForm;
+
+/// The filter's state and buffers; sizes fixed by (n, m, k) at construction.
+#[derive(Debug, Clone)]
+pub(crate) struct Workspace<D: Dims> {
+    d: D,
+    k: usize,
+    /// x̂(t|t−1), P(t|t−1): the state before the update (and after the time update).
+    x_pred: D::Vector,
+    p_pred: D::Square,
+    /// x̂(t|t), P(t|t).
+    x_filt: D::Vector,
+    p_filt: D::Square,
+    /// Innovation of every component (NaN where missing), and the full S (m × m).
+    innov: D::Obs,
+    s_full: D::ObsSquare,
+    /// P H' of all components (n × m).
+    pht: D::StateObs,
+    /// Filter gain and predictor gain, n × m, zero columns for missing components.
+    gain: D::StateObs,
+    gain_pred: D::StateObs,
+    update: GaussianUpdate<D>,
+    /// Freeze the covariance recursion once ‖P(t+1|t) − P(t|t−1)‖ ≤ tol · max(1, ‖P‖)
+    /// (max norms) at a fully observed step; a missing value unfreezes it.
+    converge_tol: Option<f64>,
+    /// Whether the covariances and gains are frozen (then a step costs O(n² + nm + m²)).
+    frozen: bool,
+    /// Whether to compute the predictor gain when the model has no N (it is then only an
+    /// output; with N it enters the time update anyway).
+    want_gain_pred: bool,
+    /// Whether to fill `gain` (only an output).
+    want_gain: bool,
+    /// Components observed at this step, and how many (0 = no update; m = all, `obs` unused).
+    obs: Vec<usize>,
+    m_obs: usize,
+    /// The observed block when some component is missing: e_o, P H'_o, S_o, H_o, R_o, N_o.
+    partial: Partial<D>,
+    // Scratch: F P(t|t) (n × n), K and F K (n × mo), S⁻¹ N' (mo × n); P(t|t−1) before the
+    // time update.
+    fp: D::Square,
+    gain_o: D::StateObs,
+    f_gain: D::StateObs,
+    s_inv_nt: D::StateObs,
+    p_prev: D::Square,
+}
+
+/// The rows and columns of the observed components, gathered when some are missing.
+#[derive(Debug, Clone)]
+struct Partial<D: Dims> {
+    innov: D::Obs,
+    pht: D::StateObs,
+    s: D::ObsSquare,
+    h: D::StateObs,
+    r: D::ObsSquare,
+    n: D::StateObs,
+}
+
+/// What the last measurement update used, for estimators that ride along the filter (the
+/// fixed-point and fixed-lag smoothers): the observed components' rows of H, the L D L' factor
+/// of their S and S⁻¹ e.
+pub(crate) struct LastUpdate<'a> {
+    /// Number of observed components (0: no update).
+    pub m_obs: usize,
+    pub h: &'a [f64],
+    pub s_factor: &'a [f64],
+    pub s_inv_e: &'a [f64],
+}
+
+impl<D: Dims> Workspace<D> {
+    /// A workspace for sizes `d` and `k` inputs, starting from the prior `(x0, P0)`.
+    pub fn new(d: D, k: usize, x0: &[f64], p0: &[f64]) -> Self {
+        let mut ws = Workspace {
+            d,
+            k,
+            x_pred: d.vector(),
+            p_pred: d.square(),
+            x_filt: d.vector(),
+            p_filt: d.square(),
+            innov: d.obs(),
+            s_full: d.obs_square(),
+            pht: d.state_obs(),
+            gain: d.state_obs(),
+            gain_pred: d.state_obs(),
+            update: GaussianUpdate::new(d),
+            converge_tol: None,
+            frozen: false,
+            want_gain_pred: true,
+            want_gain: true,
+            obs: vec![0; d.m()],
+            m_obs: 0,
+            partial: Partial {
+                innov: d.obs(),
+                pht: d.state_obs(),
+                s: d.obs_square(),
+                h: d.state_obs(),
+                r: d.obs_square(),
+                n: d.state_obs(),
+            },
+            fp: d.square(),
+            gain_o: d.state_obs(),
+            f_gain: d.state_obs(),
+            s_inv_nt: d.state_obs(),
+            p_prev: d.square(),
+        };
+        ws.set_state(x0, p0);
+        ws
+    }
+
+    /// Sets x̂(t|t−1), P(t|t−1) (P symmetrized).
+    pub fn set_state(&mut self, x: &[f64], p: &[f64]) {
+        self.x_pred.get_mut().copy_from_slice(x);
+        self.p_pred.get_mut().copy_from_slice(p);
+        symmetrize(self.p_pred.get_mut(), self.d.n());
+    }
+
+    /// Which outputs to compute: the filter gain, the predictor gain (without N it is only an
+    /// output), and whether to freeze the recursion once it has converged to `converge_tol`.
+    pub fn configure(&mut self, want_gain: bool, want_gain_pred: bool, converge_tol: Option<f64>) {
+        self.want_gain = want_gain;
+        self.want_gain_pred = want_gain_pred;
+        self.converge_tol = converge_tol;
+    }
+
+    /// x̂(t|t−1).
+    #[inline(always)]
+    pub fn x_pred(&self) -> &[f64] {
+        self.x_pred.get()
+    }
+    /// P(t|t−1).
+    #[inline(always)]
+    pub fn p_pred(&self) -> &[f64] {
+        self.p_pred.get()
+    }
+    /// x̂(t|t) (after an update).
+    #[inline(always)]
+    pub fn x_filt(&self) -> &[f64] {
+        self.x_filt.get()
+    }
+    /// P(t|t) (after an update).
+    #[inline(always)]
+    pub fn p_filt(&self) -> &[f64] {
+        self.p_filt.get()
+    }
+    /// The innovation of every component (NaN where missing).
+    #[inline(always)]
+    pub fn innov(&self) -> &[f64] {
+        self.innov.get()
+    }
+    /// S = H P H' + R of all components.
+    #[inline(always)]
+    pub fn innovation_cov(&self) -> &[f64] {
+        self.s_full.get()
+    }
+    /// The filter gain (n × m, zero columns for missing components), when wanted.
+    #[inline(always)]
+    pub fn gain(&self) -> &[f64] {
+        self.gain.get()
+    }
+    /// The predictor gain (n × m), after the time update.
+    #[inline(always)]
+    pub fn gain_pred(&self) -> &[f64] {
+        self.gain_pred.get()
+    }
+    /// The log-likelihood term of the last update.
+    #[inline(always)]
+    pub fn loglik_t(&self) -> f64 {
+        self.update.loglik_t()
+    }
+
+    /// What the last update used; `h` is the step's full H.
+    pub fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a> {
+        let (n, mo) = (self.d.n(), self.m_obs);
+        LastUpdate {
+            m_obs: mo,
+            h: if mo == self.d.m() { &h[..mo * n] } else { &self.partial.h.get()[..mo * n] },
+            s_factor: self.update.s_factor(mo),
+            s_inv_e: self.update.s_inv_e(mo),
+        }
+    }
+
+    /// The data-independent part of the last fully observed update: P H' (n × m), the
+    /// L D L' factor of S (m × m) and ln det S.
+    pub fn gains(&self) -> (&[f64], &[f64], f64) {
+        (self.pht.get(), self.update.s_factor(self.d.m()), self.update.log_det())
+    }
+
+    /// Loads gains recorded by [`gains`](Self::gains) and freezes the covariance recursion:
+    /// the next fully observed update and time update then move only the state, with exactly
+    /// the operations of the full recursion.
+    pub fn load_gains(&mut self, pht: &[f64], s_factor: &[f64], log_det: f64) {
+        self.pht.get_mut().copy_from_slice(pht);
+        self.update.load_factor(s_factor, log_det);
+        self.m_obs = self.d.m();
+        self.frozen = true;
+    }
+
+    /// Measurement update with `y` (NaN = missing), from (x_pred, p_pred) to (x_filt, p_filt).
+    #[inline(always)]
+    pub fn update(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        let (d, n, m) = (self.d, self.d.n(), self.d.m());
+        // Innovation of every component: e = y − H x − D u (NaN where y is missing).
+        let innov = self.innov.get_mut();
+        mul_vec(innov, sys.h, self.x_pred.get(), m, n);
+        if let (Some(dm), Some(u)) = (sys.d, u) {
+            mul_vec_add(innov, dm, u, m, self.k);
+        }
+        for (e, yi) in innov.iter_mut().zip(y) {
+            *e = yi - *e;
+        }
+        let all_observed = !y.iter().any(|v| v.is_nan());
+        if self.frozen {
+            if all_observed {
+                self.update.apply_mean(d, self.innov.get(), self.pht.get(), self.x_pred.get(), self.x_filt.get_mut());
+                return Ok(());
+            }
+            self.frozen = false;
+        }
+        // C = P H' and S = H P H' + R for all components (S is the forecast error covariance
+        // of y(t), reported for missing components too).
+        let pht = self.pht.get_mut();
+        mul_bt(pht, self.p_pred.get(), sys.h, n, n, m);
+        let s = self.s_full.get_mut();
+        mul(s, sys.h, pht, m, n, m);
+        for (s, r) in s.iter_mut().zip(sys.r) {
+            *s += r;
+        }
+        symmetrize(s, m);
+
+        if all_observed {
+            self.m_obs = m;
+            let pred = MeasurementPrediction {
+                innov: self.innov.get(),
+                cross_cov: self.pht.get(),
+                innov_cov: self.s_full.get(),
+                joseph: (form == UpdateForm::Joseph).then_some((sys.h, sys.r)),
+            };
+            // The fully observed case gets the compile-time m.
+            self.update.apply(
+                d,
+                m,
+                &pred,
+                self.x_pred.get(),
+                self.p_pred.get(),
+                self.x_filt.get_mut(),
+                self.p_filt.get_mut(),
+                t,
+            )?;
+            if self.want_gain {
+                transpose(self.gain.get_mut(), self.update.gain_t(m, n), m, n);
+            }
+            return Ok(());
+        }
+        self.m_obs = 0;
+        for (i, yi) in y.iter().enumerate() {
+            if !yi.is_nan() {
+                self.obs[self.m_obs] = i;
+                self.m_obs += 1;
+            }
+        }
+        if self.want_gain {
+            self.gain.get_mut().fill(0.0);
+        }
+        if self.m_obs == 0 {
+            self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
+            self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
+            self.update.set_loglik_t(0.0);
+            return Ok(());
+        }
+        self.update_partial(sys, form, t)
+    }
+
+    /// The update with the observed components only (some, not all, are missing).
+    fn update_partial(&mut self, sys: &StepView<'_>, form: UpdateForm, t: usize) -> Result<()> {
+        let (d, n, m, mo) = (self.d, self.d.n(), self.d.m(), self.m_obs);
+        let obs = &self.obs[..mo];
+        let p = &mut self.partial;
+        let (innov, pht, s_full) = (self.innov.get(), self.pht.get(), self.s_full.get());
+        for (a, &i) in obs.iter().enumerate() {
+            p.innov.get_mut()[a] = innov[i];
+            p.h.get_mut()[a * n..(a + 1) * n].copy_from_slice(&sys.h[i * n..(i + 1) * n]);
+            for (b, &j) in obs.iter().enumerate() {
+                p.s.get_mut()[a * mo + b] = s_full[i * m + j];
+                p.r.get_mut()[a * mo + b] = sys.r[i * m + j];
+            }
+        }
+        for r in 0..n {
+            for (a, &i) in obs.iter().enumerate() {
+                p.pht.get_mut()[r * mo + a] = pht[r * m + i];
+                if let Some(nn) = sys.n {
+                    p.n.get_mut()[r * mo + a] = nn[r * m + i];
+                }
+            }
+        }
+        let pred = MeasurementPrediction {
+            innov: p.innov.get(),
+            cross_cov: p.pht.get(),
+            innov_cov: p.s.get(),
+            joseph: (form == UpdateForm::Joseph).then_some((p.h.get(), p.r.get())),
+        };
+        self.update.apply(
+            d,
+            mo,
+            &pred,
+            self.x_pred.get(),
+            self.p_pred.get(),
+            self.x_filt.get_mut(),
+            self.p_filt.get_mut(),
+            t,
+        )?;
+        if self.want_gain {
+            let gain_t = self.update.gain_t(mo, n);
+            let gain = self.gain.get_mut();
+            for (j, &i) in obs.iter().enumerate() {
+                for r in 0..n {
+                    gain[r * m + i] = gain_t[j * n + r];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Skips the measurement update (nothing observed, as for an all-NaN y).
+    pub fn skip_update(&mut self) {
+        self.frozen = false;
+        self.m_obs = 0;
+        self.innov.get_mut().fill(f64::NAN);
+        self.gain.get_mut().fill(0.0);
+        self.update.set_loglik_t(0.0);
+        self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
+        self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
+    }
+
+    /// Time update from (x_filt, p_filt) to the next (x_pred, p_pred), and the predictor gain
+    /// `K_pred = F K + N S⁻¹` of the update just made.
+    #[inline(always)]
+    pub fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
+        let (n, m, mo) = (self.d.n(), self.d.m(), self.m_obs);
+        let x_pred = self.x_pred.get_mut();
+        mul_vec(x_pred, sys.f, self.x_filt.get(), n, n);
+        if let (Some(b), Some(u)) = (sys.b, u) {
+            mul_vec_add(x_pred, b, u, n, self.k);
+        }
+        if self.frozen {
+            if let Some(nn) = sys.n {
+                mul_vec_add(x_pred, nn, self.update.s_inv_e(m), n, m);
+            }
+            return;
+        }
+        if self.converge_tol.is_some() {
+            self.p_prev.get_mut().copy_from_slice(self.p_pred.get());
+        }
+        let fp = self.fp.get_mut();
+        mul(fp, sys.f, self.p_filt.get(), n, n, n);
+        let p_pred = self.p_pred.get_mut();
+        mul_bt_sym(p_pred, fp, sys.f, n, n);
+        for (p, q) in p_pred.iter_mut().zip(sys.q) {
+            *p += q;
+        }
+        if self.want_gain_pred || sys.n.is_some() {
+            if mo == m {
+                self.predictor_gain(m, sys);
+            } else {
+                self.gain_pred.get_mut().fill(0.0);
+                if mo > 0 {
+                    self.predictor_gain(mo, sys);
+                }
+            }
+        }
+        symmetrize(self.p_pred.get_mut(), n);
+        if let (Some(tol), true) = (self.converge_tol, mo == m) {
+            let (p_pred, p_prev) = (self.p_pred.get(), self.p_prev.get());
+            let change = p_pred.iter().zip(p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let size = p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            self.frozen = change <= tol * size;
+        }
+    }
+
+    /// K_pred = F K + N S⁻¹ over the `mo` observed components, and the N terms of the time
+    /// update (Söderström (6.25), (6.26)).
+    #[inline(always)]
+    fn predictor_gain(&mut self, mo: usize, sys: &StepView<'_>) {
+        let (n, m) = (self.d.n(), self.d.m());
+        // F K (n × mo), with K = (K')'.
+        let gain = &mut self.gain_o.get_mut()[..n * mo];
+        transpose(gain, self.update.gain_t(mo, n), mo, n);
+        let fk = &mut self.f_gain.get_mut()[..n * mo];
+        mul(fk, sys.f, gain, n, n, mo);
+        if let Some(nn) = sys.n {
+            let n_o = if mo == m { &nn[..n * m] } else { &self.partial.n.get()[..n * mo] };
+            // x̂(t+1|t) += N S⁻¹ e
+            mul_vec_add(self.x_pred.get_mut(), n_o, self.update.s_inv_e(mo), n, mo);
+            // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
+            let g_t = &mut self.s_inv_nt.get_mut()[..mo * n];
+            transpose(g_t, n_o, n, mo);
+            ldl_solve(self.update.s_factor(mo), g_t, mo, n);
+            // P(t+1|t) −= K_pred N' + N (F K)'
+            let p_pred = self.p_pred.get_mut();
+            for r in 0..n {
+                for c in 0..n {
+                    let mut acc = 0.0;
+                    for a in 0..mo {
+                        let kp = fk[r * mo + a] + g_t[a * n + r];
+                        acc += kp * n_o[c * mo + a] + n_o[r * mo + a] * fk[c * mo + a];
+                    }
+                    p_pred[r * n + c] -= acc;
+                }
+            }
+            for r in 0..n {
+                for a in 0..mo {
+                    fk[r * mo + a] += g_t[a * n + r];
+                }
+            }
+        }
+        let gain_pred = self.gain_pred.get_mut();
+        if mo == m {
+            gain_pred.copy_from_slice(&fk[..n * m]);
+        } else {
+            for (a, &i) in self.obs[..mo].iter().enumerate() {
+                for r in 0..n {
+                    gain_pred[r * m + i] = fk[r * mo + a];
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! [`KalmanFilter`]: the filter one step at a time, for streams.
+
+use std::borrow::Borrow;
+use std::sync::Arc;
+
+use super::step::{UpdateForm, Workspace};
+use crate::core::dims::Dyn;
+use crate::core::validate::{check_input_row, check_observation, check_prior};
+use crate::error::{Error, Result};
+use crate::linear::model::LinearGaussian;
+use crate::linear::validate::check_input_width;
+
+/// The filter one step at a time, for streams: `update(y)` then `predict(u)`, or `step`.
+///
+/// The state starts as the prior `x̂(0|−1), P(0|−1)`. After `update` at step t, [`x`](Self::x)
+/// and [`p`](Self::p) are `x̂(t|t), P(t|t)`; after `predict` they are `x̂(t+1|t), P(t+1|t)` and
+/// the step counter advances. `predict` without an `update` treats the step as missing.
+/// Results equal [`filter`] on the same data.
+#[derive(Debug, Clone)]
+pub struct KalmanFilter<M: Borrow<LinearGaussian> = Arc<LinearGaussian>> {
+    model: M,
+    ws: Workspace<Dyn>,
+    form: UpdateForm,
+    t: usize,
+    updated: bool,
+    loglik: f64,
+}
+
+impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
+    /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`. The model may be owned, borrowed
+    /// (`&LinearGaussian`) or shared (`Arc<LinearGaussian>`).
+    pub fn new(model: M, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
+        let lg = model.borrow();
+        check_prior(lg.n_states(), x0, p0)?;
+        let d = Dyn { n: lg.n_states(), m: lg.n_obs() };
+        let ws = Workspace::new(d, lg.n_inputs(), x0, p0);
+        Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: 0.0 })
+    }
+
+    /// Measurement update with `y` (length m, NaN = missing); `u` is needed when the model has D.
+    pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        let m = self.model().n_obs();
+        if y.len() != m {
+            return Err(
+                Error::arg("y", format!("expected {m} values (m = {m}), got {}", y.len())).at_step(Some(self.t))
+            );
+        }
+        check_observation(y, Some(self.t))?;
+        self.check_input(u, "D", self.model().matrices().d.is_some())?;
+        if self.updated {
+            return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
+        }
+        let sys = self.model.borrow().at(self.t);
+        self.ws.update(&sys, y, u, self.form, self.t)?;
+        self.loglik += self.ws.loglik_t();
+        self.updated = true;
+        Ok(())
+    }
+
+    /// Time update to the next step; `u` is needed when the model has B.
+    pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
+        self.check_input(u, "B", self.model().matrices().b.is_some())?;
+        if !self.updated {
+            self.ws.skip_update();
+        }
+        let sys = self.model.borrow().at(self.t);
+        self.ws.predict(&sys, u);
+        self.t += 1;
+        self.updated = false;
+        Ok(())
+    }
+
+    /// `update(y, u)` then `predict(u)`.
+    pub fn step(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
+        self.update(y, u)?;
+        self.predict(u)
+    }
+
+    /// Checks the step is within a per-step model and `u`; `u` is required when the matrix
+    /// `needs` (D for the update, B for the time update) is in the model.
+    pub(crate) fn check_input(&self, u: Option<&[f64]>, needs: &str, required: bool) -> Result<()> {
+        if let Some(tm) = self.model().steps() {
+            if self.t >= tm {
+                return Err(Error::arg(
+                    "model",
+                    format!("its per-step matrices cover {tm} steps; step {} is past the end", self.t),
+                ));
+            }
+        }
+        match u {
+            Some(u) => {
+                check_input_width(self.model(), u.len())?;
+                check_input_row(u, Some(self.t))
+            }
+            None if required => Err(Error::arg(
+                "u",
+                format!("the model has {needs}, so u with {} values is required", self.model().n_inputs()),
+            )
+            .at_step(Some(self.t))),
+            None => Ok(()),
+        }
+    }
+
+    /// Current state estimate: `x̂(t|t)` after an update, `x̂(t|t−1)` otherwise.
+    pub fn x(&self) -> &[f64] {
+        if self.updated {
+            self.ws.x_filt()
+        } else {
+            self.ws.x_pred()
+        }
+    }
+
+    /// Covariance of [`x`](Self::x).
+    pub fn p(&self) -> &[f64] {
+        if self.updated {
+            self.ws.p_filt()
+        } else {
+            self.ws.p_pred()
+        }
+    }
+
+    /// The current step t (number of predicts so far).
+    pub fn t(&self) -> usize {
+        self.t
+    }
+
+    /// Sum of the log-likelihood terms of the updates so far.
+    pub fn loglik(&self) -> f64 {
+        self.loglik
+    }
+
+    /// The model.
+    pub fn model(&self) -> &LinearGaussian {
+        self.model.borrow()
+    }
+
+    /// Whether the current step has been updated (x, P are then filtered estimates).
+    pub fn is_updated(&self) -> bool {
+        self.updated
+    }
+
+    pub(crate) fn workspace(&self) -> &Workspace<Dyn> {
+        &self.ws
+    }
+}
