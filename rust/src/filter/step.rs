@@ -1,7 +1,7 @@
 //! One step of the Kalman filter: the measurement update and the time update, on a workspace
 //! allocated once per sequence so that the time loop allocates nothing.
 //!
-//! Söderström Lemma 6.1, (6.22)–(6.27), written in kfast notation in ALGORITHMS.md §1.1:
+//! Söderström Lemma 6.1, (6.22)–(6.27), in kfast notation (docs/algorithms.md, "Filter recursion"):
 //!
 //! ```text
 //! e = y − H x̂(t|t−1) − D u            S = H P(t|t−1) H' + R
@@ -29,7 +29,7 @@ use super::{FilterOutputs, Run};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum UpdateForm {
     /// `(I − K H) P (I − K H)' + K R K'`: a sum of congruences, stays symmetric PSD under
-    /// rounding (ALGORITHMS.md §1.4). The default.
+    /// rounding (docs/algorithms.md, "Joseph form"). The default.
     #[default]
     Joseph,
     /// `P − K S K'`, symmetrized: cheaper, can lose definiteness when S is ill-conditioned.
