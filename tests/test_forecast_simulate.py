@@ -35,7 +35,7 @@ def test_forecast_matches_reference_and_missing_data_filtering(seed):
 
 
 def test_forecast_tends_to_the_stationary_covariance():
-    """P(t+k|t) -> Pi, the solution of Pi = F Pi F' + Q, for stable F (ALGORITHMS.md §1.2)."""
+    """P(t+k|t) -> Pi, the solution of Pi = F Pi F' + Q, for stable F (docs/algorithms.md, "Forecasting")."""
     case = random_case(4, n=3, m=1, T=5)
     model = kfast.LinearGaussian(**case.model)
     fc = model.forecast(np.zeros(3), np.eye(3), 400)

@@ -1,4 +1,4 @@
-"""The stochastic-process model catalogue (kfast.models; ALGORITHMS.md §11).
+"""The stochastic-process model catalogue (kfast.models; docs/algorithms.md, "Model catalogue").
 
 Stationary models: the sample autocovariance of one long simulated path, started from the
 stationary covariance (scipy's discrete Lyapunov solver), matches the stated closed form within

@@ -1,6 +1,6 @@
 """The NumPy reference Lyapunov, Riccati and sampling solvers (python/kfast/reference) against
 scipy.linalg on seeded random systems, and against textbook cases B3 (Söderström ex. 6.6) and
-D3 (G&A ex. 4.9) of shared/acceptance/TEXTBOOK_CASES.md."""
+D3 (G&A ex. 4.9) of tests/data/textbook_cases.json."""
 
 import numpy as np
 import pytest
@@ -222,7 +222,8 @@ def test_care_eigen_matches_scipy(seed):
 
 
 def test_dare_kalman_mapping():
-    # a = F', b = H', s = N: the gain (b'Xb + r)^-1 (b'Xa + s') is K_pred' (ALGORITHMS §6.1).
+    # a = F', b = H', s = N: the gain (b'Xb + r)^-1 (b'Xa + s') is K_pred'
+    # (docs/algorithms.md, "DARE and the Kalman filter").
     a, b, q, r, _, s = riccati_case(3, with_e=False)
     F, H, N = a.T, b.T, s
     P = dare_eigen(a, b, q, r, s=s)
@@ -248,7 +249,8 @@ def b3(a_, c):
     ],
 )
 def test_b3_riccati_iteration_singular_r(c, P, K_pred, eig):
-    # Söderström ex. 6.6 (TEXTBOOK_CASES B3): R = 0, two solutions, only the stabilizing one is right.
+    # Söderström ex. 6.6 (case B3 of tests/data/textbook_cases.json): R = 0, two solutions,
+    # only the stabilizing one is right.
     a, b, q, r = b3(0.5, c)
     X = dare_iteration(a, b, q, r)
     np.testing.assert_allclose(X, P, rtol=1e-9, atol=1e-12)
@@ -260,7 +262,7 @@ def test_b3_riccati_iteration_singular_r(c, P, K_pred, eig):
 def test_b3_other_root_is_a_non_stabilizing_fixed_point():
     # c = 1.5: P = [[1, c], [c, c^2]] (q = 0 in the book's family) solves the DARE too, with
     # K_pred = [1, 0] and eig(F - K_pred H) = {-1.5, 0}: started there, the iteration stays there
-    # (failure mode 2 of ALGORITHMS §6.3); the default start x0 = I does not.
+    # (failure mode 2 in docs/algorithms.md, "Stabilizing solution"); the default start x0 = I does not.
     a, b, q, r = b3(0.5, 1.5)
     X_bad = np.array([[1.0, 1.5], [1.5, 2.25]])
     np.testing.assert_allclose(dare_iteration(a, b, q, r, x0=X_bad), X_bad, atol=1e-12)
@@ -287,7 +289,7 @@ def resonator(wr=2.0, wd=1 / 3):
 
 
 def test_d3_damped_resonator():
-    # G&A ex. 4.9 (TEXTBOOK_CASES D3).
+    # G&A ex. 4.9 (case D3 of tests/data/textbook_cases.json).
     A, Qc = resonator(), np.diag([0.0, 1.0])
     F, Qd = van_loan(A, Qc, 0.1)
     want = np.array([[3.14589889e-4, 4.615499469e-3], [4.615499469e-3, 9.2369208819e-2]])
@@ -319,7 +321,7 @@ def test_van_loan_matches_quadrature(seed):
 
 
 def test_first_order_is_the_small_dt_limit():
-    # Qd - Qc dt = (A Qc + Qc A') dt^2 / 2 + O(dt^3)  (ALGORITHMS §8b)
+    # Qd - Qc dt = (A Qc + Qc A') dt^2 / 2 + O(dt^3)  (docs/algorithms.md, "First-order approximation")
     A, Qc = resonator(), np.diag([0.0, 1.0])
     lead = (A @ Qc + Qc @ A.T) / 2
     for dt in (1e-2, 1e-3, 1e-4):

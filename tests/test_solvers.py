@@ -168,7 +168,8 @@ def test_no_stabilizing_solution_raises():
 
 def test_unit_circle_mode_without_noise_is_not_stabilizing():
     """A random walk with no process noise has the maximal solution P = 0 with F - K H = 1:
-    not stabilizing (ALGORITHMS.md §6.3 failure mode 1); kfast raises instead of returning it."""
+    not stabilizing (failure mode 1 in docs/algorithms.md, "Stabilizing solution"); kfast raises
+    instead of returning it."""
     with pytest.raises(kfast.NoStabilizingSolutionError):
         kfast.solve_discrete_are([[1.0]], [[1.0]], [[0.0]], [[1.0]])
 

@@ -100,7 +100,7 @@ def test_d3_van_loan_matches_the_resonator_numbers_and_closed_form():
     F, Qd, _ = kfast.discretize(A, Qc, c["dt"])
     np.testing.assert_allclose(Qd, c["Qd"], rtol=c["rtol"])
     np.testing.assert_allclose(F, sl.expm(A * c["dt"]), rtol=1e-13)
-    # Closed form (ALGORITHMS.md §11g) with omega the damped frequency, 1/tau the damping rate.
+    # Closed form (docs/algorithms.md, "Damped resonator") with omega the damped frequency, 1/tau the damping rate.
     w, tau, q, h = np.sqrt(c["wr"] ** 2), 1 / c["wd"], c["q"], c["dt"]
     S, C, E = np.sin(w * h), np.cos(w * h), np.exp(-2 * h / tau)
     q11 = q * tau * (w**2 * tau**2 * (1 - E) - 2 * S * E * (S + w * tau * C)) / (4 * w**2 * (1 + w**2 * tau**2))
@@ -114,7 +114,7 @@ def test_d3_van_loan_matches_the_resonator_numbers_and_closed_form():
 
 @pytest.mark.parametrize("h", [1e-2, 1e-3, 1e-4])
 def test_van_loan_small_dt_tends_to_the_first_order_approximation(h):
-    """Qd = Qc h + (A Qc + Qc A') h^2 / 2 + O(h^3) (ALGORITHMS.md §8b)."""
+    """Qd = Qc h + (A Qc + Qc A') h^2 / 2 + O(h^3) (docs/algorithms.md, "First-order approximation")."""
     c = CASES["D3"]
     A, Qc = resonator(c)
     _, Qd, _ = kfast.discretize(A, Qc, h)
@@ -244,7 +244,7 @@ def test_innovations_form_reproduces_the_output_statistics():
     K, S = inn.K_pred, inn.S
     twin = kfast.LinearGaussian(inn.F, inn.H, K @ S @ K.T, S, N=K @ S)
     np.testing.assert_allclose(twin.autocovariance(range(5)), model.autocovariance(range(5)), rtol=1e-8, atol=1e-10)
-    # Its own steady state is P = 0 (ALGORITHMS.md §2: a sanity test of singular joint noise).
+    # Its own steady state is P = 0 (a sanity test of singular joint noise; docs/algorithms.md, "Correlated noise").
     np.testing.assert_allclose(twin.steady_state().P_pred, 0, atol=1e-10)
 
 

@@ -1,6 +1,6 @@
 """kfast: Kalman filters, smoothers and Riccati solvers with a Rust core.
 
-Model and conventions (DESIGN.md §2)::
+Model and conventions (docs/conventions.md)::
 
     x[t+1] = F x[t] + B u[t] + w[t]      w ~ N(0, Q)
     y[t]   = H x[t] + D u[t] + v[t]      v ~ N(0, R),  E[w[t] v[t]'] = N

@@ -1,4 +1,4 @@
-"""The linear Gaussian state-space model and its filter results (DESIGN.md §2-3)."""
+"""The linear Gaussian state-space model and its filter results (conventions: docs/conventions.md)."""
 
 from __future__ import annotations
 
@@ -325,7 +325,7 @@ class LinearGaussian:
         "x_smooth", "P_smooth", "P_lag1" and the filter's (e.g. ("x_smooth", "P_smooth")); the
         others are None, which saves their memory and time. All by default.
 
-        Backward pass (ALGORITHMS.md §5.2): J(t) = (P(t|t) F' - K(t) N') P(t+1|t)^-1,
+        Backward pass (docs/algorithms.md, "RTS"): J(t) = (P(t|t) F' - K(t) N') P(t+1|t)^-1,
         x(t|T-1) = x(t|t) + J (x(t+1|T-1) - x(t+1|t)), P(t|T-1) = P(t|t) + J (P(t+1|T-1) -
         P(t+1|t)) J'. With N != 0 this is the N = 0 smoother of the decorrelated model of
         Söderström Lemma 6.4 (F - N R^-1 H in place of F), written without R^-1.

@@ -1,7 +1,7 @@
 """Catalogue of stochastic-process models as ready-made ``kfast.LinearGaussian`` models
-(ALGORITHMS.md §11; Grewal & Andrews ch. 4; Söderström Sec. 4.4; Gimel'farb; Mortensen).
+(docs/algorithms.md, "Model catalogue"; Grewal & Andrews ch. 4; Söderström Sec. 4.4; Gimel'farb; Mortensen).
 
-Conventions used throughout (ALGORITHMS.md §9.1, §11):
+Conventions used throughout (docs/conventions.md; docs/algorithms.md, "Model catalogue"):
 
 * ``q`` is a continuous white-noise *intensity* (covariance q δ(τ)), ``sigma2`` a variance,
   ``dt`` = h the sampling interval. Continuous models dx = A x dt + dβ, E[dβ dβ'] = Qc dt are
@@ -257,7 +257,7 @@ def continuous(kind: str, **params) -> Continuous:
 
 def augment_continuous(plant: Continuous, shaping: Continuous, where: str, gamma=None) -> Continuous:
     """Append a continuous shaping filter dx_s = A_s x_s dt + dβ_s (output H_s x_s) for coloured
-    noise (G&A Sec. 4.5, (4.77); ALGORITHMS.md §11i):
+    noise (G&A Sec. 4.5, (4.77); docs/algorithms.md, "Shaping filters"):
 
     * ``where="process"``: the shaping output drives the plant through ``gamma`` (n × m_s;
       default I when n = m_s): A_a = [[A, Γ H_s], [0, A_s]], Qc_a = blockdiag(Qc, Qc_s),
@@ -317,7 +317,7 @@ def _gamma(gamma, n: int, ms: int) -> np.ndarray:
 
 
 def random_constant(r=1.0) -> LinearGaussian:
-    """Random constant (Gimel'farb ex. 1; Mortensen's resistor; ALGORITHMS.md §11a).
+    """Random constant (Gimel'farb ex. 1; Mortensen's resistor; docs/algorithms.md, "Random constant").
 
     State x (scalar). Continuous ẋ = 0; discrete x[k+1] = x[k]: F = 1, Q = 0. y = x + v,
     var v = r. With x(0) ~ (m0, P0): Cov(x[k], x[l]) = P0 for all k, l, so
@@ -328,7 +328,7 @@ def random_constant(r=1.0) -> LinearGaussian:
 
 
 def random_walk(dt, q=1.0, r=1.0) -> LinearGaussian:
-    """Random walk / Wiener process (G&A (4.79)-(4.84); Mortensen ch. 1; ALGORITHMS.md §11b).
+    """Random walk / Wiener process (G&A (4.79)-(4.84); Mortensen ch. 1; docs/algorithms.md, "Random walk").
 
     State x (scalar). Continuous ẋ = w, w white with intensity q. Exact discrete: F = 1,
     Qd = q dt. y = x + v, var v = r.
@@ -342,7 +342,7 @@ def random_walk(dt, q=1.0, r=1.0) -> LinearGaussian:
 
 
 def random_ramp(dt, r=1.0, observe: Observe = 0) -> LinearGaussian:
-    """Random ramp [standard] (ALGORITHMS.md §11c).
+    """Random ramp [standard] (docs/algorithms.md, "Random ramp").
 
     State [x1, x2] = [value, slope]. Continuous ẋ1 = x2, ẋ2 = 0, no noise. Exact discrete:
     F = [[1, dt], [0, 1]], Q = 0. ``observe`` 0 measures the value (default), 1 the slope,
@@ -359,7 +359,7 @@ def random_ramp(dt, r=1.0, observe: Observe = 0) -> LinearGaussian:
 
 def constant_velocity(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> LinearGaussian:
     """Constant velocity = white-noise acceleration = integrated random walk, per axis
-    [standard] (ALGORITHMS.md §11d).
+    [standard] (docs/algorithms.md, "Constant velocity").
 
     State (derivative-major): [p_0..p_{dim-1}, v_0..v_{dim-1}]; for dim = 2, (px, py, vx, vy).
     Per axis, continuous ṗ = v, v̇ = w, w white with intensity q (a scalar or one per axis):
@@ -384,7 +384,7 @@ def constant_velocity(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> LinearGaus
 
 
 def constant_acceleration(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> LinearGaussian:
-    """Constant acceleration = white-noise jerk, per axis (Gimel'farb ex. 2; ALGORITHMS.md §11d).
+    """Constant acceleration = white-noise jerk, per axis (Gimel'farb ex. 2; docs/algorithms.md, "Constant acceleration").
 
     State (derivative-major): [positions..., velocities..., accelerations...]. Per axis,
     continuous ṗ = v, v̇ = a, ȧ = w, w white with intensity q (scalar or per axis):
@@ -413,7 +413,7 @@ def constant_acceleration(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> Linear
 
 def gauss_markov_1(sigma2, beta, dt, r=1.0) -> LinearGaussian:
     """First-order Gauss-Markov (exponentially correlated) process (G&A Table 4.1,
-    Prob. 4.30-4.31; Söderström Sec. 4.5; ALGORITHMS.md §11e).
+    Prob. 4.30-4.31; Söderström Sec. 4.5; docs/algorithms.md, "First-order Gauss–Markov").
 
     State x (scalar), variance ``sigma2`` = σ², ``beta`` = β = 1/τ_c (τ_c the correlation time).
     Continuous ẋ = −β x + w, w white with intensity q = 2σ²β. Exact discrete, a = e^{−β dt}:
@@ -430,7 +430,7 @@ def gauss_markov_1(sigma2, beta, dt, r=1.0) -> LinearGaussian:
 
 
 def gauss_markov_2(omega_n, zeta, q, dt, r=1.0, observe: Observe = 0) -> LinearGaussian:
-    """Second-order Gauss-Markov process (G&A Sec. 4.3; ALGORITHMS.md §11f).
+    """Second-order Gauss-Markov process (G&A Sec. 4.3; docs/algorithms.md, "Second-order Gauss–Markov").
 
     State [x, ẋ] (position, velocity). Continuous ẍ + 2ζω_n ẋ + ω_n² x = w, w white with
     intensity q: A = [[0, 1], [−ω_n², −2ζω_n]], Qc = diag(0, q) (ζ > 0, ω_n > 0). Exact
@@ -451,7 +451,7 @@ def gauss_markov_2(omega_n, zeta, q, dt, r=1.0, observe: Observe = 0) -> LinearG
 
 
 def _resonator_discrete(omega: float, tau: float, q: float, h: float):
-    """Closed forms of G&A ex. 4.9 (ALGORITHMS.md §11g)."""
+    """Closed forms of G&A ex. 4.9 (docs/algorithms.md, "Damped resonator")."""
     S, C = math.sin(omega * h), math.cos(omega * h)
     E = math.exp(-2 * h / tau)
     one_minus_E = -math.expm1(-2 * h / tau)
@@ -467,7 +467,7 @@ def _resonator_discrete(omega: float, tau: float, q: float, h: float):
 
 def damped_resonator(omega, tau, q, dt, r=1.0, observe: Observe = 0) -> LinearGaussian:
     """Damped harmonic resonator driven by white acceleration (G&A Example 4.9;
-    ALGORITHMS.md §11g).
+    docs/algorithms.md, "Damped resonator").
 
     State [x, ẋ]. ``omega`` = ω is the *damped* frequency (rad/s), 1/``tau`` the damping rate:
     A = [[0, 1], [−(ω² + 1/τ²), −2/τ]], Qc = diag(0, q) (q the intensity of the white
@@ -530,7 +530,7 @@ def _ar_coeffs(coeffs) -> np.ndarray:
 
 def ar(coeffs, noise_var, r=0.0) -> LinearGaussian:
     """AR(p) process in companion form (Söderström Example 3.1 / Sec. 4.2.3; G&A (4.75)-(4.76);
-    ALGORITHMS.md §11h).
+    docs/algorithms.md, "AR(p)").
 
     Sign convention (Söderström, statsmodels' ``ArmaProcess([1, a1, ..., ap], [1])``):
         y(t) + a1 y(t−1) + … + ap y(t−p) = e(t),   var e = ``noise_var`` = λ²,
@@ -565,7 +565,7 @@ def ar(coeffs, noise_var, r=0.0) -> LinearGaussian:
 
 def augment(model: LinearGaussian, shaping: LinearGaussian, where: str, *, gamma=None, Q=None, R=None) -> LinearGaussian:
     """Append a discrete shaping filter for coloured noise (G&A Sec. 4.5, (4.77);
-    ALGORITHMS.md §11i). The coloured noise is the shaping model's *output*
+    docs/algorithms.md, "Shaping filters"). The coloured noise is the shaping model's *output*
     y_s[k] = H_s x_s[k] + v_s[k], x_s[k+1] = F_s x_s[k] + w_s[k] (cov w_s = Q_s, cov v_s = R_s,
     E[w_s v_s'] = N_s): build it with r = 0 for purely coloured noise (e.g.
     ``gauss_markov_1(sigma2, beta, dt, r=0)``). The augmented state is [x; x_s].
@@ -715,8 +715,8 @@ def singer_autocovariance(lag, alpha, sigma_m2):
 
 def ar_autocovariance(lags, coeffs, noise_var, r=0.0):
     """r(k) = E[y(t+k) y(t)] of the stationary AR(p) process of ``ar`` at integer ``lags``
-    (array-like), plus ``r`` at k = 0. Yule-Walker (Söderström (4.29)-(4.35), ALGORITHMS.md
-    §9.3 route 2): for k = 0..p, Σ_i a_i r(k−i) = λ² δ_k with r(−k) = r(k), then
+    (array-like), plus ``r`` at k = 0. Yule-Walker (Söderström (4.29)-(4.35);
+    docs/algorithms.md, "ARMA covariances"): for k = 0..p, Σ_i a_i r(k−i) = λ² δ_k with r(−k) = r(k), then
     r(k) = −Σ_i a_i r(k−i) for k > p. Raises KfastError when the process is not stationary."""
     a = _ar_coeffs(coeffs)
     lam2 = _nonneg("noise_var", noise_var)

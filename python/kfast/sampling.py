@@ -1,5 +1,5 @@
 """Continuous-time models: matrix exponential, exact (Van Loan) discretization, irregular
-sampling, and the stationary Kalman-Bucy filter (ALGORITHMS.md §8; Söderström (4.99)-(4.103)).
+sampling, and the stationary Kalman-Bucy filter (Söderström (4.99)-(4.103); docs/algorithms.md, "Sampling").
 
 Conventions: dx = A x dt + B u dt + dbeta with E[dbeta dbeta'] = Qc dt, so Qc is a continuous
 white-noise *intensity* (its discrete covariance over an interval h is Qd(h), about Qc h for

@@ -1,8 +1,8 @@
-"""Stationary analysis of a constant model (Söderström ch. 4, 6.7; ALGORITHMS.md §6, §9):
+"""Stationary analysis of a constant model (Söderström ch. 4, Sec. 6.7; docs/algorithms.md, "Stationary analysis"):
 the steady-state filter, the innovations form, the stationary covariance, the output
 autocovariance and spectral density.
 
-Conventions (§9.1): r_y(tau) = E[y(t+tau) y(t)'] (lag on the first factor), r_y(-tau) =
+Conventions (docs/conventions.md): r_y(tau) = E[y(t+tau) y(t)'] (lag on the first factor), r_y(-tau) =
 r_y(tau)'. The spectral density has no 1/2pi: phi(w) = h sum_k r_y(k) e^{-i w k h}, so that
 r_y(k) = (1/2pi) int_{-pi/h}^{pi/h} phi(w) e^{i w k h} dw (Söderström (3.22)-(3.25)); with
 h = 1 the frequency w is in radians per sample. (statsmodels and Brockwell-Davis divide by

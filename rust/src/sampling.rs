@@ -1,5 +1,5 @@
 //! Matrix exponential and exact discretization of continuous-time models
-//! (ALGORITHMS.md §8; Söderström (4.99)–(4.103), ex. 4.6):
+//! (Söderström (4.99)–(4.103), ex. 4.6; docs/algorithms.md, "Sampling"):
 //!
 //! ```text
 //! dx = A x dt + B u dt + dβ,   E dβ dβ' = Qc dt   (Qc: a continuous white-noise intensity)
@@ -101,7 +101,7 @@ fn continuous_model(
     Ok((am, qm, b.map(|b| checked_mat("B", b, n, k)).transpose()?))
 }
 
-/// Van Loan discretization of (A, Qc, B) over `dt` (ALGORITHMS.md §8a).
+/// Van Loan discretization of (A, Qc, B) over `dt` (docs/algorithms.md, "Van Loan").
 pub fn discretize(a: &[f64], qc: &[f64], b: Option<&[f64]>, n: usize, k: usize, dt: f64) -> Result<Discretized> {
     let (am, qm, bm) = continuous_model(a, qc, b, n, k)?;
     if !(dt > 0.0 && dt.is_finite()) {

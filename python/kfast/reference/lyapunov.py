@@ -1,4 +1,4 @@
-"""Lyapunov equations in plain NumPy (ALGORITHMS §7): the test oracles, never the fast path.
+"""Lyapunov equations in plain NumPy (docs/algorithms.md, "Lyapunov"): the test oracles, never the fast path.
 
 SciPy's argument conventions, so the tests compare 1:1 with ``scipy.linalg``::
 
@@ -35,7 +35,7 @@ def solve_discrete_lyapunov_kron(a, q, tol=1e-8):
 
     Row-major vec: vec(a X a') = (a kron conj(a)) vec(X), so (I - a kron conj(a)) vec X = vec q.
     Its eigenvalues are 1 - l_i conj(l_j): the solution is unique iff l_i conj(l_j) != 1
-    (ALGORITHMS §7; for real a this is l_i l_j != 1). Raises ValueError otherwise (relative
+    (docs/algorithms.md, "Lyapunov"; for real a this is l_i l_j != 1). Raises ValueError otherwise (relative
     tolerance ``tol``, loose because a defective a has eigenvalues only to ~sqrt(eps)).
     """
     a, q = np.asarray(a), np.asarray(q)
@@ -51,7 +51,7 @@ def solve_continuous_lyapunov_kron(a, q, tol=1e-8):
     """X with a X + X a' = q (scipy.linalg.solve_continuous_lyapunov), by vectorization.
 
     Row-major vec: vec(a X) = (a kron I) vec X and vec(X a') = (I kron conj(a)) vec X. The
-    eigenvalues of the sum are l_i + conj(l_j): unique iff l_i + conj(l_j) != 0 (ALGORITHMS §7,
+    eigenvalues of the sum are l_i + conj(l_j): unique iff l_i + conj(l_j) != 0 (Söderström
     (4.90)-(4.92)). Raises ValueError otherwise (tolerance relative to max|l|).
     """
     a, q = np.asarray(a), np.asarray(q)

@@ -1,4 +1,5 @@
-"""Algebraic Riccati equations in plain NumPy (ALGORITHMS §6): the test oracles, never the fast path.
+"""Algebraic Riccati equations in plain NumPy: the test oracles, never the fast path
+(docs/algorithms.md, "Riccati equations").
 
 SciPy's conventions and argument order (real matrices)::
 
@@ -41,7 +42,8 @@ def _remove_e(a, q, s, e):
 
 
 def _remove_s(a, b, q, r, s):
-    """(a~, q~) = (a - b r^-1 s', q - s r^-1 s'), the s = 0 problem (ALGORITHMS §2, §6.4)."""
+    """(a~, q~) = (a - b r^-1 s', q - s r^-1 s'), the s = 0 problem (Lemma 6.4;
+    docs/algorithms.md, "Correlated noise")."""
     rs = np.linalg.solve(r, s.T)  # r^-1 s'
     return a - b @ rs, q - s @ rs
 
@@ -54,7 +56,7 @@ def dare_gain(a, b, r, X, s=None):
 
 
 def dare_closed_loop_eigenvalues(a, b, r, s, X, e=None):
-    """eig(a - bK), K = dare_gain (the Kalman filter's eig(F - K_pred H), §6.2); with e, the
+    """eig(a - bK), K = dare_gain (the Kalman filter's eig(F - K_pred H), Söderström (4.55)); with e, the
     generalized eigenvalues eig((a - bK) e^-1)."""
     a, b = np.atleast_2d(np.asarray(a, dtype=float)), np.atleast_2d(np.asarray(b, dtype=float))
     Acl = a - b @ dare_gain(a, b, r, X, s)
@@ -62,7 +64,8 @@ def dare_closed_loop_eigenvalues(a, b, r, s, X, e=None):
 
 
 def is_stabilizing_dare(a, b, r, s, X, e=None, margin=0.0):
-    """True iff X is stabilizing: rho(a - bK) < 1 - margin (ALGORITHMS §6.3; e: of (a - bK) e^-1)."""
+    """True iff X is stabilizing: rho(a - bK) < 1 - margin (with e: of (a - bK) e^-1;
+    docs/algorithms.md, "Stabilizing solution")."""
     return bool(np.max(np.abs(dare_closed_loop_eigenvalues(a, b, r, s, X, e))) < 1 - margin)
 
 
@@ -93,7 +96,7 @@ def care_residual(a, b, q, r, X, e=None, s=None):
 
 
 def dare_iteration(a, b, q, r, s=None, x0=None, tol=1e-13, max_iter=100000):
-    """DARE (e = I) by the Riccati iteration (6.90) in the congruence form of ALGORITHMS §6.4(a):
+    """DARE (e = I) by the Riccati iteration (6.90) in congruence form (docs/algorithms.md, "Riccati iteration"):
 
         K = (b'Xb + r)^-1 (b'Xa + s')
         X <- (a - bK)' X (a - bK) + [I; -K]' [[q, s], [s', r]] [I; -K]
@@ -101,7 +104,8 @@ def dare_iteration(a, b, q, r, s=None, x0=None, tol=1e-13, max_iter=100000):
     which equals a'Xa - (a'Xb + s)(b'Xb + r)^-1 (b'Xa + s') + q but is a sum of congruences
     (PSD when [[q, s], [s', r]] >= 0). Singular r is fine while b'Xb + r stays invertible (case
     B3 of ex. 6.6 has r = 0). Default start x0 = I (P0 > 0 avoids the non-stabilizing fixed
-    points of failure mode 2, §6.3). Stops when ||X_{k+1} - X_k||_F <= tol max(1, ||X_{k+1}||_F);
+    points of failure mode 2 in docs/algorithms.md, "Stabilizing solution"). Stops when
+    ||X_{k+1} - X_k||_F <= tol max(1, ||X_{k+1}||_F);
     converges linearly at about rho(a - bK)^2 per step.
     """
     a, b, q, r, _, s = _defaults(a, b, q, r, None, s)

@@ -1,4 +1,4 @@
-"""Sampling a continuous-time model in plain NumPy (ALGORITHMS §8): the test oracles.
+"""Sampling a continuous-time model in plain NumPy (docs/algorithms.md, "Sampling"): the test oracles.
 
 dx = A x dt + B u dt + dbeta (intensity Qc) sampled at interval dt, zero-order-hold input, gives
 x[k+1] = F x[k] + Bd u[k] + w[k] exactly, with (Söderström (4.99)-(4.103), ex. 4.6)::
@@ -35,7 +35,8 @@ def expm_taylor(a, max_terms=40):
 
 
 def van_loan(A, Qc, dt, B=None):
-    """(F, Qd) or (F, Qd, Bd) by Van Loan's block exponentials, inverse-free form (ALGORITHMS §8a):
+    """(F, Qd) or (F, Qd, Bd) by Van Loan's block exponentials, inverse-free form
+    (Söderström ex. 4.6; docs/algorithms.md, "Van Loan"):
 
         exp(dt [[-A, Qc], [0, A']]) = [[., E12], [0, E22]]   =>   F = E22',  Qd = F E12
         exp(dt [[A, B], [0, 0]])    = [[F, Bd], [0, I]]
@@ -58,7 +59,8 @@ def van_loan(A, Qc, dt, B=None):
 
 
 def qd_first_order(A, Qc, dt):
-    """Qd ~ Qc dt, the explicit first-order approximation (G&A Sec. 4.7.2.2; ALGORITHMS §8b).
+    """Qd ~ Qc dt, the explicit first-order approximation (G&A Sec. 4.7.2.2;
+    docs/algorithms.md, "First-order approximation").
 
     Error O(dt^2): it drops (A Qc + Qc A') dt^2 / 2 and higher terms. A is unused (kept for a
     signature parallel to van_loan).

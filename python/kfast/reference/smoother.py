@@ -1,6 +1,6 @@
 """Smoothers in plain NumPy: the oracles for kfast's Rust smoothers.
 
-- ``rts_smoother``: Rauch-Tung-Striebel over the reference filter (ALGORITHMS.md §5.2-5.3).
+- ``rts_smoother``: Rauch-Tung-Striebel over the reference filter (docs/algorithms.md, "RTS").
 - ``map_smoother``: the MAP criterion of Söderström (6.80)-(6.83) solved as one linear system;
   its solution is x(t|T-1), and the inverse of its matrix (the posterior precision) holds
   P(t|T-1) on the diagonal blocks and the lag-one covariances next to them. An independent
@@ -38,7 +38,7 @@ def rts_smoother(F, H, Q, R, y, x0, P0, B=None, D=None, N=None, u=None, form="jo
 
 def map_smoother(F, H, Q, R, y, x0, P0, B=None, D=None, N=None, u=None):
     """Minimize V of Söderström (6.80) over the stacked x(0..T-1) (Söderström (6.81)-(6.83),
-    ALGORITHMS.md §5.1), with y(0) included. Correlated noise is first removed by Lemma 6.4:
+    docs/algorithms.md, "MAP smoother"), with y(0) included. Correlated noise is first removed by Lemma 6.4:
     x(t+1) = F̄ x(t) + B̄ u(t) + N R^-1 y(t) + w̄, F̄ = F - N R^-1 H, Q̄ = Q - N R^-1 N'
     (over the observed components). Needs P0, Q̄, R invertible. Returns (x, P, P_lag1)."""
     y = np.asarray(y, dtype=float)

@@ -1,4 +1,4 @@
-//! k-step forecasts of the state and the output (Söderström (6.38)–(6.42), ALGORITHMS.md §1.2).
+//! k-step forecasts of the state and the output (Söderström (6.38)–(6.42); docs/algorithms.md, "Forecasting").
 //!
 //! Start from a one-step prediction `(x, P) = x̂(t|t−1), P(t|t−1)` (e.g. the filter's
 //! `x_next, P_next`); row j of the result is the forecast of step t + j, j = 0..steps:

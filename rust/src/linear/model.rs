@@ -1,4 +1,4 @@
-//! The linear Gaussian state-space model (DESIGN.md §2):
+//! The linear Gaussian state-space model (docs/conventions.md):
 //!
 //! ```text
 //! x[t+1] = F x[t] + B u[t] + w[t]        w ~ N(0, Q)

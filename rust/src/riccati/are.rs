@@ -1,4 +1,4 @@
-//! Algebraic Riccati equations with SciPy's conventions (ALGORITHMS.md §6), so that these are
+//! Algebraic Riccati equations with SciPy's conventions (docs/algorithms.md, "Riccati equations"), so that these are
 //! drop-in replacements for `scipy.linalg.solve_discrete_are` / `solve_continuous_are`:
 //!
 //! ```text
@@ -180,7 +180,7 @@ pub fn solve_discrete_are(
             newton(&p, start, 60)?
         }
         // Eigenvectors lose digits when they are ill-conditioned: one or two Newton steps
-        // restore them (ALGORITHMS.md §6.4f).
+        // restore them (Söderström ex. 6.23; docs/algorithms.md, "Newton–Hewer").
         (DareMethod::Eigen, Some(r_inv)) => newton(&p, eigen(&p, r_inv)?, 2)?,
         (DareMethod::Eigen, None) => {
             return Err(Error::arg("r", "must be invertible for method \"eigen\" (use \"doubling\" or \"iteration\")"))
@@ -219,7 +219,7 @@ fn riccati_step(p: &Problem, x: &Mat<f64>, k: &Mat<f64>) -> Mat<f64> {
     sym(&(acl.transpose() * x * &acl + &p.q - &sk - sk.transpose() + k.transpose() * &p.r * k))
 }
 
-/// Structure-preserving doubling on the problem with s removed (ALGORITHMS.md §6.4e):
+/// Structure-preserving doubling on the problem with s removed (ex. 6.24; docs/algorithms.md, "Doubling"):
 /// A ← A W⁻¹A, G ← G + A W⁻¹G A', H ← H + A'H W⁻¹A with W = I + G H, until H (→ X) settles.
 /// The loop runs on row-major buffers with the small dense kernels and one LU of W per step
 /// (at n = 4 a faer call costs more than its arithmetic; from 8³ multiply-adds the products
@@ -316,7 +316,7 @@ fn solve_twice(w: &mut [f64], piv: &mut [usize], v1: &mut [f64], v2: &mut [f64],
     lu.solve_in_place(faer::MatMut::from_row_major_slice_mut(v2, n, n));
 }
 
-/// Riccati iteration from X = I (ALGORITHMS.md §6.4a).
+/// Riccati iteration (6.90) from X = max(1, ‖q‖) I (docs/algorithms.md, "Riccati iteration").
 fn iteration(p: &Problem) -> Result<(Mat<f64>, usize)> {
     let n = p.a.nrows();
     let mut x = Mat::<f64>::identity(n, n) * faer::Scale(p.q.norm_max().max(1.0));
@@ -362,7 +362,7 @@ fn newton(p: &Problem, x0: Mat<f64>, max_iter: usize) -> Result<(Mat<f64>, usize
     Ok((x, max_iter))
 }
 
-/// Stable invariant subspace of the symplectic matrix (ALGORITHMS.md §6.4c, control form).
+/// Stable invariant subspace of the symplectic matrix, control form (docs/algorithms.md, "Eigenvector method").
 fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
     let n = p.a.nrows();
     let rs = r_inv * p.s.transpose();
@@ -420,7 +420,7 @@ fn spectral_radius(a: &Mat<f64>) -> Result<f64> {
     Ok(eigenvalues(a)?.iter().map(|(re, im)| re.hypot(*im)).fold(0.0, f64::max))
 }
 
-/// Post-checks (ALGORITHMS.md §6.3): gain, closed-loop eigenvalues (must be inside the unit
+/// Post-checks (docs/algorithms.md, "Stabilizing solution"): gain, closed-loop eigenvalues (must be inside the unit
 /// circle), relative residual; the gain is mapped back through e.
 fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize) -> Result<RiccatiSolution> {
     let k = dare_gain(p, &x).ok_or_else(|| no_solution("b'Xb + r is singular at the solution"))?;

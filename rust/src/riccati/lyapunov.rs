@@ -1,4 +1,4 @@
-//! Lyapunov equations, with SciPy's conventions (ALGORITHMS.md §7):
+//! Lyapunov equations, with SciPy's conventions (docs/algorithms.md, "Lyapunov"):
 //!
 //! - [`solve_discrete_lyapunov`]`(a, q)`: X = a X a' + q  (Söderström (4.9), (4.22)–(4.24))
 //! - [`solve_continuous_lyapunov`]`(a, q)`: a X + X a' = q  (Söderström (4.90)–(4.92); a

@@ -2,7 +2,7 @@
 //! (for the model-agnostic [`GaussianUpdate`]) and the time update, on a workspace allocated
 //! once per sequence so that the time loop allocates nothing.
 //!
-//! Söderström Lemma 6.1, (6.22)–(6.27) (docs/algorithms.md, "Linear filter"):
+//! Söderström Lemma 6.1, (6.22)–(6.27) (docs/algorithms.md, "Filter recursion"):
 //!
 //! ```text
 //! e = y − H x̂(t|t−1) − D u            S = H P(t|t−1) H' + R,   C = P(t|t−1) H'

@@ -33,7 +33,7 @@ pub struct SmootherResult {
     pub filter: FilterResult,
 }
 
-/// Kalman filter, then the RTS backward pass (ALGORITHMS.md §5.2–5.3).
+/// Kalman filter, then the RTS backward pass (docs/algorithms.md, "RTS", "Lag-one covariance").
 pub fn smooth(
     model: &LinearGaussian,
     y: Series<'_>,

@@ -1,4 +1,4 @@
-//! Rauch–Tung–Striebel fixed-interval smoother (ALGORITHMS.md §5.2–5.3), run backwards over
+//! Rauch–Tung–Striebel fixed-interval smoother (docs/algorithms.md, "RTS"), run backwards over
 //! the stored filter outputs:
 //!
 //! ```text
