@@ -255,8 +255,11 @@ class LinearGaussian:
 
         steady_state=True: the constant-gain filter with the stationary gains of
         ``steady_state()`` from the first step, O(n^2) per step (P0 is not used; constant
-        models only). A missing value makes that step run the full recursion from the
-        stationary covariance, after which the filter returns to the constant gains.
+        models only). A missing value runs the exact recursion through the gap (the
+        covariance grows while nothing is observed) and after it, until P(t+1|t) has
+        converged back to the stationary one (change below 1e-10 relative); then the gains
+        are constant again. So with gaps the estimates and the log-likelihood are those of the
+        exact filter started from the stationary covariance, to about that tolerance.
         converge_tol: switch to constant gains once max|P(t+1|t) - P(t|t-1)| <= converge_tol
         * max(1, max|P|) at a fully observed step, like statsmodels' steady-state shortcut;
         results then differ from the exact filter by about that tolerance. Off by default.
@@ -267,7 +270,7 @@ class LinearGaussian:
             if converge_tol is not None:
                 raise _kfast.KfastError("converge_tol: not used with steady_state=True (the gains are constant from the start)")
             P0 = self.steady_state().P_pred
-            converge_tol = np.inf
+            converge_tol = _STEADY_STATE_TOL
         elif P0 is None:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
@@ -430,6 +433,12 @@ class LinearGaussian:
             x = x.reshape(1) if x.size == 1 else x
             P = P.reshape(1, 1) if P.size == 1 else P
         return x, P
+
+
+# steady_state=True freezes the gains when P(t+1|t) changes by less than this (relative): at
+# once from the stationary P0 (the DARE's solution is accurate to ~1e-14), and again once the
+# recursion has returned to it after a gap.
+_STEADY_STATE_TOL = 1e-10
 
 
 def _psd_sqrt(C: np.ndarray) -> np.ndarray:
