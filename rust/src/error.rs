@@ -8,6 +8,7 @@ use std::fmt;
 
 /// What went wrong, and where.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum Error {
     /// An argument has the wrong shape or a value it may not have (NaN, inf, asymmetry,
     /// a covariance that is not positive semidefinite, ...).

@@ -40,6 +40,8 @@
 //! assert!((res.p_pred[0] - 1.0).abs() < 1e-12); // Söderström ex. 6.17: P = 1 is stationary
 //! ```
 
+#![warn(missing_docs)]
+
 mod core;
 pub mod error;
 pub mod linear;

@@ -8,7 +8,7 @@
 //! `filter_batch` is a pure function of (model, block of series): it maps unchanged over
 //! chunks of series.
 
-use rayon::prelude::*;
+use par::*;
 
 use crate::core::dims::{with_dims, Dims, Dyn};
 use crate::core::Series;
@@ -65,11 +65,7 @@ pub fn filter_batch(
 ) -> Result<bool> {
     let shared = shares_covariances(model, &batch);
     check_batch(model, &batch, &out, shared)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
-        .build()
-        .map_err(|e| Error::arg("threads", e.to_string()))?;
-    pool.install(|| if shared { run_shared(model, &batch, out) } else { run_each(model, &batch, out) })?;
+    par::on_threads(threads, || if shared { run_shared(model, &batch, out) } else { run_each(model, &batch, out) })?;
     Ok(shared)
 }
 
@@ -254,4 +250,57 @@ fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Res
             Ok(())
         },
     )
+}
+
+/// Parallel iteration over series: rayon's with the default feature `rayon`, else the same
+/// names over sequential iterators (one thread, same results).
+#[cfg(feature = "rayon")]
+mod par {
+    pub use rayon::prelude::*;
+
+    use crate::error::{Error, Result};
+
+    /// Runs `f` on a pool of `threads` threads (all cores when `None`).
+    pub fn on_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads.unwrap_or(0))
+            .build()
+            .map_err(|e| Error::arg("threads", e.to_string()))?;
+        pool.install(f)
+    }
+}
+
+#[cfg(not(feature = "rayon"))]
+mod par {
+    use crate::error::Result;
+
+    /// Runs `f` on this thread (`threads` is ignored without the feature `rayon`).
+    pub fn on_threads(_threads: Option<usize>, f: impl FnOnce() -> Result<()>) -> Result<()> {
+        f()
+    }
+
+    /// rayon's slice methods, sequential.
+    pub trait ParSlice<T> {
+        fn par_chunks_mut(&mut self, size: usize) -> std::slice::ChunksMut<'_, T>;
+        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T>;
+    }
+
+    impl<T> ParSlice<T> for [T] {
+        fn par_chunks_mut(&mut self, size: usize) -> std::slice::ChunksMut<'_, T> {
+            self.chunks_mut(size)
+        }
+        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T> {
+            self.iter_mut()
+        }
+    }
+
+    /// rayon's `for_each_init`, sequential: one state for all items.
+    pub trait ForEachInit: Iterator + Sized {
+        fn for_each_init<S>(self, init: impl FnOnce() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
+            let mut state = init();
+            self.for_each(|item| f(&mut state, item));
+        }
+    }
+
+    impl<I: Iterator> ForEachInit for I {}
 }

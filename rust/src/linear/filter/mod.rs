@@ -4,7 +4,7 @@
 //! Conventions (docs/conventions.md): the prior `(x0, P0)` is `x̂(0|−1), P(0|−1)`, so the
 //! first operation is the measurement update with `y[0]`. `y` is `(T, m)` row-major; NaN marks
 //! a missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
-//! The recursion is Söderström Lemma 6.1 / (6.24) (see [`step`] for the equations).
+//! The recursion is Söderström Lemma 6.1 / (6.24) (docs/algorithms.md, "Filter recursion").
 
 mod outputs;
 pub(crate) mod step;

@@ -15,7 +15,7 @@ use crate::linear::validate::check_input_width;
 /// The state starts as the prior `x̂(0|−1), P(0|−1)`. After `update` at step t, [`x`](Self::x)
 /// and [`p`](Self::p) are `x̂(t|t), P(t|t)`; after `predict` they are `x̂(t+1|t), P(t+1|t)` and
 /// the step counter advances. `predict` without an `update` treats the step as missing.
-/// Results equal [`filter`] on the same data.
+/// Results equal [`filter`](super::filter) on the same data.
 #[derive(Debug, Clone)]
 pub struct KalmanFilter<M: Borrow<LinearGaussian> = Arc<LinearGaussian>> {
     model: M,

@@ -64,7 +64,7 @@ pub struct FixedLagResult {
     pub p_smooth: Vec<f64>,
 }
 
-/// Fixed-lag smoother: the estimate of x[s] from y up to s + `lag` (up to the last
+/// Fixed-lag smoother: the estimate of x(s) from y up to s + `lag` (up to the last
 /// observation near the end), for every s. `lag = 0` is the filter; `lag ≥ T − 1` gives the
 /// RTS smoother at every s. Söderström (6.55)–(6.79), structured recursion.
 pub fn smooth_fixed_lag(
@@ -136,7 +136,7 @@ pub struct FixedPointResult {
     pub p: Vec<f64>,
 }
 
-/// Fixed-point smoother: the estimate of x[`t_point`] from y up to each t ≥ t_point, with its
+/// Fixed-point smoother: the estimate of x(`t_point`) from y up to each t ≥ t_point, with its
 /// covariance. Söderström (6.45)–(6.54).
 pub fn smooth_fixed_point(
     model: &LinearGaussian,

@@ -1,9 +1,9 @@
-//! Smoothers: estimates of x[s] that use measurements after s.
+//! Smoothers: estimates of x(s) that use measurements after s.
 //!
 //! - [`smooth`] / [`rts_into`]: fixed-interval (Rauch–Tung–Striebel), every state given all
 //!   data, with lag-one covariances.
-//! - [`smooth_fixed_lag`] and the online [`FixedLagSmoother`]: x[s] given data up to s + lag.
-//! - [`smooth_fixed_point`]: one state x[s] given data up to each t ≥ s.
+//! - [`smooth_fixed_lag`] and the online [`FixedLagSmoother`]: x(s) given data up to s + lag.
+//! - [`smooth_fixed_point`]: one state x(s) given data up to each t ≥ s.
 
 mod lagged;
 mod past;
@@ -27,7 +27,7 @@ pub struct SmootherResult {
     pub x_smooth: Vec<f64>,
     /// P(t|T−1), `(T, n, n)`.
     pub p_smooth: Vec<f64>,
-    /// Cov(x[t], x[t−1] | all data), `(T, n, n)`; row 0 is zero.
+    /// Cov(x(t), x(t−1) | all data), `(T, n, n)`; row 0 is zero.
     pub p_lag1: Vec<f64>,
     /// The forward pass.
     pub filter: FilterResult,
@@ -55,8 +55,11 @@ pub fn smooth(
 /// covariances `(T, n, n)`; `None` skips one.
 #[derive(Debug, Default)]
 pub struct SmoothOutputs<'a> {
+    /// x̂(t|T−1), `(T, n)`.
     pub x_smooth: Option<&'a mut [f64]>,
+    /// P(t|T−1), `(T, n, n)`.
     pub p_smooth: Option<&'a mut [f64]>,
+    /// Cov(x(t), x(t−1) | all data), `(T, n, n)`; row 0 is zero.
     pub p_lag1: Option<&'a mut [f64]>,
 }
 

@@ -23,23 +23,31 @@ use crate::linear::model::LinearGaussian;
 /// The filter outputs the backward pass reads (row-major, sizes as in [`crate::FilterResult`]).
 #[derive(Debug, Clone, Copy)]
 pub struct FilteredView<'a> {
+    /// x̂(t|t−1), `(T, n)`.
     pub x_pred: &'a [f64],
+    /// P(t|t−1), `(T, n, n)`.
     pub p_pred: &'a [f64],
+    /// x̂(t|t), `(T, n)`.
     pub x_filt: &'a [f64],
+    /// P(t|t), `(T, n, n)`.
     pub p_filt: &'a [f64],
+    /// The filter gain K(t), `(T, n, m)` (used only when the model has N).
     pub gain: &'a [f64],
 }
 
 /// Output buffers of [`rts_into`]: x_smooth `(T, n)`, p_smooth and p_lag1 `(T, n, n)`.
 #[derive(Debug)]
 pub struct RtsOutputs<'a> {
+    /// x̂(t|T−1), `(T, n)`.
     pub x_smooth: &'a mut [f64],
+    /// P(t|T−1), `(T, n, n)`.
     pub p_smooth: &'a mut [f64],
+    /// Cov(x(t), x(t−1) | all data), `(T, n, n)`; row 0 is zero.
     pub p_lag1: &'a mut [f64],
 }
 
 /// The backward RTS pass over filter outputs for `steps` steps. `p_lag1[t]` is
-/// Cov(x[t], x[t−1] | all data) for t ≥ 1; `p_lag1[0]` is zero (there is no x[−1]).
+/// Cov(x(t), x(t−1) | all data) for t ≥ 1; `p_lag1[0]` is zero (there is no x(−1)).
 pub fn rts_into(model: &LinearGaussian, steps: usize, filt: FilteredView<'_>, out: RtsOutputs<'_>) -> Result<()> {
     let (n, m) = (model.n_states(), model.n_obs());
     let nn = n * n;
