@@ -78,6 +78,7 @@ pub(crate) fn expm_mat(a: &Mat<f64>) -> Mat<f64> {
 
 /// The exact discrete model over an interval `dt > 0`: (F, Qd, Bd), Bd empty without B.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Discretized {
     /// e^{A dt}, `n × n`.
     pub f: Vec<f64>,

@@ -19,6 +19,7 @@ use crate::linear::model::LinearGaussian;
 
 /// Forecast means and covariances, row-major.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Forecast {
     /// State means, `(steps, n)`.
     pub x: Vec<f64>,

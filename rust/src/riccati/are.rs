@@ -26,6 +26,7 @@ use crate::riccati::lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapuno
 
 /// How the DARE is solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum DareMethod {
     /// Structure-preserving doubling (ex. 6.24): quadratic convergence, no inverse of a.
     /// Needs r invertible; with a singular r it falls back to `Iteration` refined by `Newton`.
@@ -46,6 +47,7 @@ pub enum DareMethod {
 
 /// A solution of a Riccati equation and how good it is.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct RiccatiSolution {
     /// X, `n × n` row-major, symmetric.
     pub x: Vec<f64>,

@@ -55,6 +55,7 @@ impl LagWindow {
 
 /// Smoothed estimates of every state from a lagged amount of data.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct FixedLagResult {
     /// The lag L.
     pub lag: usize,
@@ -127,6 +128,7 @@ pub fn smooth_fixed_lag_into(
 
 /// Estimates of one state from growing amounts of data.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct FixedPointResult {
     /// The fixed time s.
     pub t_point: usize,

@@ -22,6 +22,7 @@ use rts::{rts_in_place, Priors};
 
 /// The RTS smoother's results with the filter's.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct SmootherResult {
     /// x̂(t|T−1), `(T, n)`.
     pub x_smooth: Vec<f64>,
