@@ -60,8 +60,8 @@ pub use linear::forecast::{forecast, Forecast};
 pub use linear::model::{LinearGaussian, Matrices, StepMatrix};
 pub use linear::simulate::propagate;
 pub use linear::smoother::{
-    smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagResult, FixedLagSmoother, FixedPointResult,
-    SmoothOutputs, SmootherResult,
+    smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagOptions, FixedLagResult, FixedLagSmoother,
+    FixedPointResult, SmoothOutputs, SmootherResult,
 };
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,

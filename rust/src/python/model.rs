@@ -202,7 +202,15 @@ impl PyLinearGaussian {
         let model = &*self.inner;
         py.detach(|| {
             let [x_out, p_out] = &mut slices[..] else { unreachable!("two output arrays") };
-            smoother::smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, x_out, p_out)
+            smoother::smooth_fixed_lag_into(
+                model,
+                y,
+                u,
+                x0,
+                p0,
+                smoother::FixedLagOptions::new(lag).form(form),
+                smoother::FixedLagOutputs::new(x_out, p_out),
+            )
         })?;
         drop(slices);
         out.into_dict(py)

@@ -65,6 +65,46 @@ pub struct FixedLagResult {
     pub p_smooth: Vec<f64>,
 }
 
+/// The lag of [`smooth_fixed_lag`] and the update form of its filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct FixedLagOptions {
+    /// The lag L: x(s) is estimated from y up to s + L.
+    pub lag: usize,
+    /// The filter's covariance update form.
+    pub form: UpdateForm,
+}
+
+impl FixedLagOptions {
+    /// Lag `lag`, Joseph form.
+    pub fn new(lag: usize) -> Self {
+        FixedLagOptions { lag, form: UpdateForm::default() }
+    }
+
+    /// The same options with the update form `form`.
+    pub fn form(self, form: UpdateForm) -> Self {
+        FixedLagOptions { form, ..self }
+    }
+}
+
+/// Output buffers of [`smooth_fixed_lag_into`]: x̂(s | min(s + L, T − 1)) `(T, n)` and its
+/// covariance `(T, n, n)`.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct FixedLagOutputs<'a> {
+    /// `(T, n)`.
+    pub x_smooth: &'a mut [f64],
+    /// `(T, n, n)`.
+    pub p_smooth: &'a mut [f64],
+}
+
+impl<'a> FixedLagOutputs<'a> {
+    /// Wraps the two buffers.
+    pub fn new(x_smooth: &'a mut [f64], p_smooth: &'a mut [f64]) -> Self {
+        FixedLagOutputs { x_smooth, p_smooth }
+    }
+}
+
 /// Fixed-lag smoother: the estimate of x(s) from y up to s + `lag` (up to the last
 /// observation near the end), for every s. `lag = 0` is the filter; `lag ≥ T − 1` gives the
 /// RTS smoother at every s. Söderström (6.55)–(6.79), structured recursion.
@@ -74,28 +114,28 @@ pub fn smooth_fixed_lag(
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    lag: usize,
-    form: UpdateForm,
+    options: FixedLagOptions,
 ) -> Result<FixedLagResult> {
     let (n, steps) = (model.n_states(), y.steps());
-    let mut res = FixedLagResult { lag, x_smooth: vec![0.0; steps * n], p_smooth: vec![0.0; steps * n * n] };
-    smooth_fixed_lag_into(model, y, u, x0, p0, lag, form, &mut res.x_smooth, &mut res.p_smooth)?;
+    let mut res =
+        FixedLagResult { lag: options.lag, x_smooth: vec![0.0; steps * n], p_smooth: vec![0.0; steps * n * n] };
+    let out = FixedLagOutputs::new(&mut res.x_smooth, &mut res.p_smooth);
+    smooth_fixed_lag_into(model, y, u, x0, p0, options, out)?;
     Ok(res)
 }
 
-/// [`smooth_fixed_lag`] writing into `x_out` `(T, n)` and `p_out` `(T, n, n)`.
-#[allow(clippy::too_many_arguments)]
+/// [`smooth_fixed_lag`] writing into caller-owned buffers.
 pub fn smooth_fixed_lag_into(
     model: &LinearGaussian,
     y: Series<'_>,
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    lag: usize,
-    form: UpdateForm,
-    x_out: &mut [f64],
-    p_out: &mut [f64],
+    options: FixedLagOptions,
+    out: FixedLagOutputs<'_>,
 ) -> Result<()> {
+    let FixedLagOptions { lag, form } = options;
+    let FixedLagOutputs { x_smooth: x_out, p_smooth: p_out } = out;
     let steps = check_data(model, y, u, x0, p0)?;
     let (n, m) = (model.n_states(), model.n_obs());
     check_len("x_smooth", x_out, steps * n)?;

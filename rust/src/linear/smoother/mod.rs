@@ -10,7 +10,8 @@ mod past;
 mod rts;
 
 pub use lagged::{
-    smooth_fixed_lag, smooth_fixed_lag_into, smooth_fixed_point, FixedLagResult, FixedLagSmoother, FixedPointResult,
+    smooth_fixed_lag, smooth_fixed_lag_into, smooth_fixed_point, FixedLagOptions, FixedLagOutputs, FixedLagResult,
+    FixedLagSmoother, FixedPointResult,
 };
 pub use rts::{rts_into, FilteredView, RtsOutputs};
 
