@@ -1,6 +1,8 @@
 //! # kfast
 //!
-//! Kalman filtering for linear Gaussian state-space models, with a Rust core and a Python face.
+//! State estimation with a Rust core and a Python face: Kalman filters and smoothers for
+//! linear Gaussian state-space models, Riccati and Lyapunov solvers, sampling of
+//! continuous-time models.
 //!
 //! ```text
 //! x[t+1] = F x[t] + B u[t] + w[t]        w ~ N(0, Q)
@@ -8,20 +10,27 @@
 //! prior:  x[0] ~ N(x0, P0)               (x0, P0) is x̂(0|−1): the first step is an update
 //! ```
 //!
+//! The crate is organised by family over a shared core (docs/architecture.md): [`linear`]
+//! (the model, filter, smoothers, many series, forecasts, simulation), [`riccati`] (algebraic
+//! Riccati and Lyapunov equations), [`sampling`] (continuous to discrete time); the core (small
+//! dense kernels, compile-time sizes, validators and the model-agnostic Gaussian measurement
+//! update every filter ends its step with) is internal.
+//!
 //! The Rust API in one screen:
 //!
 //! - [`StepMatrix`], [`Matrices`] and [`LinearGaussian`]: the model, each matrix constant or
 //!   given per step, validated once by [`LinearGaussian::new`].
 //! - [`filter`] / [`filter_into`] → [`FilterResult`]: the whole series; [`loglik`]: the
 //!   likelihood alone. [`Series`] wraps the row-major `(T, m)` data and `(T, k)` inputs.
-//! - [`KalmanFilter`]: the same filter one step at a time for streams.
+//! - [`KalmanFilter`]: the same filter one step at a time for streams, over an owned,
+//!   borrowed or shared (`Arc`) model.
 //! - [`FilterOptions`]: the [`UpdateForm`] (Joseph, the default, or standard) and the optional
 //!   freezing of the gains once the covariance has converged (`converge_tol`).
 //! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances; [`smooth_into`] stores
-//!   only the outputs asked for), [`smooth_fixed_lag`] and
+//!   only the outputs asked for), [`smooth_fixed_lag`] ([`FixedLagOptions`]) and
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
-//! - [`filter_batch`]: many series through one model on all cores, the covariance recursion
-//!   computed once when it is shared.
+//! - [`filter_batch`]: many series through one model on all cores (feature `rayon`, on by
+//!   default), the covariance recursion computed once when it is shared.
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
 //! - [`solve_discrete_are`] / [`solve_continuous_are`] → [`RiccatiSolution`] (SciPy's
