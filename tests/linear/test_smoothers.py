@@ -15,7 +15,7 @@ from kfast.reference import fixed_lag_augmented, fixed_point_augmented, map_smoo
 from modelgen import random_case
 
 OPTIONS = list(itertools.product([False, True], [False, True], [False, True], ["none", "rows", "partial"]))
-CASES = json.loads((Path(__file__).parent / "data" / "textbook_cases.json").read_text())
+CASES = json.loads((Path(__file__).parent.parent / "data" / "textbook_cases.json").read_text())
 
 
 def case_for(seed, T=25):

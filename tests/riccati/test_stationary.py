@@ -12,7 +12,7 @@ import scipy.linalg as sl
 import kfast
 from modelgen import random_case
 
-CASES = json.loads((Path(__file__).parent / "data" / "textbook_cases.json").read_text())
+CASES = json.loads((Path(__file__).parent.parent / "data" / "textbook_cases.json").read_text())
 
 
 def test_b1_steady_state():
