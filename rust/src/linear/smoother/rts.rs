@@ -209,17 +209,42 @@ impl Backward<'_> {
 }
 
 /// Solves `A X = B` in place for the symmetric PSD `a[n×n]` and `b[n×n]`: by an L D L'
-/// factorization, or, when A is singular (e.g. Q = 0 with a singular F), with the
+/// factorization, or, when A is singular (e.g. Q = 0 with a singular F, or R = 0), with the
 /// pseudo-inverse, which gives the smoother gain because Cov(x̃(t|t), x̃(t+1|t)) lies in the
-/// range of P(t+1|t).
+/// range of P(t+1|t). "Singular" includes a factorization that succeeds with a pivot at
+/// rounding level (see [`pivots_above_rounding`]): dividing by it would amplify the rounding
+/// errors of B outside that range into an error of order one (issue 9: the WPI AR(3) model
+/// with R = 0, whose P(1|0) computed in Joseph form had a pivot of 2e-32).
 #[inline(always)]
 fn solve_psd(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
     factor.copy_from_slice(a);
-    if ldl(factor, n).is_ok() {
+    if ldl(factor, n).is_ok() && pivots_above_rounding(a, factor, n) {
         ldl_solve(factor, b, n, n);
         return Ok(());
     }
     solve_pseudo_inverse(a, b, n)
+}
+
+/// Whether every pivot `d_j` of the [`ldl`] factor `factor` of the PSD `a[n×n]` exceeds
+/// `32 n ε max_i a_ii`.
+///
+/// Why this floor: for a PSD matrix every entry is bounded by the largest diagonal entry
+/// (|a_ij| ≤ √(a_ii a_jj)), and the computed L D L' factor of a PSD matrix has a backward
+/// error bounded by about n ε |L| D |L'| ≤ n ε max_i a_ii entrywise (Higham, *Accuracy and
+/// Stability of Numerical Algorithms*, ch. 10): a pivot below that is the factor of a
+/// matrix within rounding of a singular one, and its value carries no information. P(t+1|t)
+/// also arrives with the filter's own rounding errors; on 3000 random models with exactly
+/// singular P(t+1|t) (R = 0, rank-deficient Q, F of spectral radius up to 2, n ≤ 12, both
+/// update forms) the stray pivots that the factorization accepted reached 10 n ε max a_ii,
+/// so the factor 32 leaves a margin. A genuine pivot that small means a condition number above
+/// 1e13, where the L D L' solve has no correct digits to lose either. The floor is relative to
+/// the largest diagonal entry, not to each pivot's own, because the rounding errors of
+/// P(t+1|t) are relative to its norm.
+#[inline(always)]
+fn pivots_above_rounding(a: &[f64], factor: &[f64], n: usize) -> bool {
+    let largest_diagonal = (0..n).map(|i| a[i * n + i]).fold(0.0, f64::max);
+    let floor = 32.0 * n as f64 * f64::EPSILON * largest_diagonal;
+    (0..n).all(|j| factor[j * n + j] > floor)
 }
 
 #[cold]
@@ -244,4 +269,41 @@ fn solve_pseudo_inverse(a: &[f64], b: &mut [f64], n: usize) -> std::result::Resu
     }
     b.copy_from_slice(&x);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [[3, 1], [1, 1/3]] is singular; with 1/3 rounded up by one ulp its L D L' factor
+    /// succeeds with a second pivot of 5.6e-17. The right-hand side lies in its range up to
+    /// one rounding error (as Cov(x̃(t|t), x̃(t+1|t)) does up to the filter's rounding).
+    #[test]
+    fn a_rounding_level_pivot_uses_the_pseudo_inverse() {
+        let third_up = f64::from_bits((1.0f64 / 3.0).to_bits() + 1);
+        let a = [3.0, 1.0, 1.0, third_up];
+        let mut factor = a;
+        ldl(&mut factor, 2).expect("the factorization itself succeeds");
+        assert!(factor[3] > 0.0 && factor[3] < 1e-16);
+        let mut x = [3.0, 6.0, 1.0 + f64::EPSILON, 2.0];
+        solve_psd(&a, &mut x, &mut factor, 2).unwrap();
+        // The minimum-norm solution for the exactly singular matrix: A⁺ = (3/100) [3, 1]'[3, 1].
+        for (got, want) in x.iter().zip([0.9, 1.8, 0.3, 0.6]) {
+            assert!((got - want).abs() < 1e-12, "{x:?}");
+        }
+    }
+
+    /// Widely different but genuine variances keep the L D L' solve (and its exact bits).
+    #[test]
+    fn a_well_scaled_nonsingular_matrix_keeps_the_factorization() {
+        let a = [1e6, 1e-2, 1e-2, 1e-6];
+        let mut factor = a;
+        ldl(&mut factor, 2).unwrap();
+        assert!(pivots_above_rounding(&a, &factor, 2));
+        let mut expected = [1.0, 2.0, 3.0, 4.0];
+        ldl_solve(&factor, &mut expected, 2, 2);
+        let mut x = [1.0, 2.0, 3.0, 4.0];
+        solve_psd(&a, &mut x, &mut factor, 2).unwrap();
+        assert_eq!(x, expected);
+    }
 }
