@@ -270,6 +270,22 @@ def test_b3_other_root_is_a_non_stabilizing_fixed_point():
     np.testing.assert_allclose(np.sort(dare_closed_loop_eigenvalues(a, b, r, None, X_bad).real), [-1.5, 0.0], atol=1e-12)
 
 
+def test_cross_term_iteration_from_zero_is_a_non_stabilizing_fixed_point():
+    # Söderström ex. 7.1, y(t) - 0.8 y(t-1) = e(t) + 2 e(t-1), var e = 1, in observer form:
+    # F = 0.8, k = 2.8, Q = k^2, N = k, R = 1 (tests/data/dare_cross_term.json). q - s r^-1 s' = 0,
+    # so from X = 0 the gain is r^-1 s' = 2.8, the closed loop a - bK = -2 and the next iterate
+    # is 0 again: a non-stabilizing fixed point (issue 9). From X = I the iteration reaches the
+    # stabilizing P = 3 (innovation variance 4, closed loop -0.5).
+    a, b, q, r, s = np.array([[0.8]]), np.eye(1), np.array([[2.8**2]]), np.eye(1), np.array([[2.8]])
+    X_zero = dare_iteration(a, b, q, r, s, x0=np.zeros((1, 1)))
+    np.testing.assert_allclose(X_zero, 0.0, atol=1e-15)
+    np.testing.assert_allclose(dare_closed_loop_eigenvalues(a, b, r, s, X_zero), [-2.0], atol=1e-12)
+    X = dare_iteration(a, b, q, r, s)
+    np.testing.assert_allclose(X, [[3.0]], rtol=1e-12)
+    assert is_stabilizing_dare(a, b, r, s, X)
+    np.testing.assert_allclose(dare_closed_loop_eigenvalues(a, b, r, s, X), [-0.5], atol=1e-12)
+
+
 # ----------------------------------------------------------------------------------------------
 # Sampling
 

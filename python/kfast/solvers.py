@@ -35,10 +35,18 @@ def solve_discrete_are(a, b, q, r, e=None, s=None, method: str = "doubling", bal
     when its relative residual exceeds 1e-12; needs r invertible and falls back to
     "iteration" refined by Newton when r is singular), "newton" (Newton-Hewer,
     Söderström ex. 6.23), "iteration" (Riccati iteration (6.90); singular r allowed),
-    "eigen" (eigenvectors of the symplectic matrix, Söderström 6.8). Raises
-    ``kfast.NoStabilizingSolutionError`` when there is no stabilizing solution instead of
-    returning another fixed point. For the Kalman filter's P(t|t-1): a = F', b = H', q = Q,
-    r = R, s = N. ``balanced`` is accepted for SciPy compatibility and ignored.
+    "eigen" (eigenvectors of the symplectic matrix, Söderström 6.8; the extended pencil
+    (6.125)-(6.129) when a - b r^-1 s' is singular).
+
+    When the method finds no stabilizing solution (doubling from zero can stop at a
+    non-stabilizing fixed point when q - s r^-1 s' is singular, or diverge when it is
+    indefinite), the solver falls back to Newton-Hewer from a stabilizing gain, then to the
+    eigenvectors of the extended pencil of size 2n + m (no inverse of r or a needed), and
+    raises ``kfast.NoStabilizingSolutionError`` only when these find none either (a fallback's
+    closed loop must stay 1e-8 inside the unit circle); it never returns another fixed point.
+    The fallbacks cost nothing when the method succeeds. For the Kalman filter's P(t|t-1):
+    a = F', b = H', q = Q, r = R, s = N. ``balanced`` is accepted for SciPy compatibility and
+    ignored.
     """
     return dare(a, b, q, r, e=e, s=s, method=method)["x"]
 

@@ -11,7 +11,10 @@
 //!
 //! Every method returns the stabilizing solution (ρ(a − bK) < 1 relative to e, resp.
 //! Re λ < 0) or [`Error::NoStabilizingSolution`]; the result carries the gain, the
-//! closed-loop eigenvalues and the relative residual. A nonsingular e is removed first
+//! closed-loop eigenvalues, the relative residual and the method that produced it. When the
+//! DARE method asked for finds no stabilizing solution, the solver falls back to Newton–Hewer
+//! from a stabilizing gain, then to the eigenvectors of the extended pencil, and raises only
+//! when these find none either ([`solve_discrete_are`]). A nonsingular e is removed first
 //! (a → a e⁻¹, q → e⁻ᵀ q e⁻¹, s → e⁻ᵀ s; X is unchanged), then, where r is invertible,
 //! the cross term (a → a − b r⁻¹ s', q → q − s r⁻¹ s', Söderström Lemma 6.4).
 
@@ -34,14 +37,15 @@ pub enum DareMethod {
     #[default]
     Doubling,
     /// Newton–Hewer (ex. 6.23): one Lyapunov solve per step from a stabilizing gain (K = 0
-    /// when a is stable, else the doubling solution; with a singular r, the iteration's),
-    /// quadratic convergence.
+    /// when a is stable, whatever s is; else the doubling solution's; with a singular r, the
+    /// iteration's), quadratic convergence.
     Newton,
     /// Riccati iteration (6.90) in congruence form from X = I: linear convergence at about
     /// ρ(a − bK)² per step; needs only b'Xb + r invertible (singular r is fine).
     Iteration,
     /// Eigenvectors of the symplectic matrix (Söderström 6.8, (6.116)–(6.124)), refined by
-    /// up to two Newton steps: needs r and a − b r⁻¹ s' invertible.
+    /// up to two Newton steps: needs r invertible; with a − b r⁻¹ s' singular, the
+    /// eigenvectors of the extended pencil ((6.125)–(6.129)) instead.
     Eigen,
 }
 
@@ -59,6 +63,9 @@ pub struct RiccatiSolution {
     pub residual: f64,
     /// Iterations of the method (0 for `Eigen`).
     pub iterations: usize,
+    /// The method that produced X: "doubling", "newton", "iteration", "eigen" or "pencil"
+    /// (the DARE's fallbacks can differ from the method asked for), "hamiltonian" (CARE).
+    pub method: &'static str,
 }
 
 /// The Riccati data after removing e: (a, b, q, r, s) as faer matrices, with e kept to map
@@ -161,45 +168,147 @@ pub fn solve_discrete_are(
 ) -> Result<RiccatiSolution> {
     let p = problem(a, b, q, r, e, s, n, m)?;
     let r_inv = invert(&p.r);
-    let (x, iterations) = match (method, &r_inv) {
-        (DareMethod::Doubling, Some(r_inv)) => doubling(&p, r_inv)?,
+    match solve_dare_by(&p, r_inv.as_ref(), method) {
+        // The method found no stabilizing solution or diverged. That does not mean there is
+        // none: with s, doubling and the iteration from zero can settle on a non-stabilizing
+        // fixed point (q − s r⁻¹ s' = 0 with an unstable a − b r⁻¹ s', issue 9), or diverge
+        // when q − s r⁻¹ s' is indefinite. The fallbacks cost nothing when the method succeeds.
+        Err(Error::NoStabilizingSolution { problem }) => dare_fallbacks(&p, problem),
+        other => other,
+    }
+}
+
+/// The DARE by the method asked for; the result is checked to be stabilizing.
+fn solve_dare_by(p: &Problem, r_inv: Option<&Mat<f64>>, method: DareMethod) -> Result<RiccatiSolution> {
+    let (n, m) = (p.a.nrows(), p.b.ncols());
+    let (x, iterations, used) = match (method, r_inv) {
+        (DareMethod::Doubling, Some(r_inv)) => {
+            let (x, it) = doubling(p, r_inv)?;
+            (x, it, "doubling")
+        }
         (DareMethod::Doubling, None) | (DareMethod::Iteration, _) => {
-            let (x0, it) = iteration(&p)?;
+            let (x0, it) = iteration(p)?;
             if method == DareMethod::Doubling {
-                let (x, more) = newton(&p, x0, 60)?;
-                (x, it + more)
+                let (x, more) = newton(p, x0, 60)?;
+                (x, it + more, "iteration")
             } else {
-                (x0, it)
+                (x0, it, "iteration")
             }
         }
         (DareMethod::Newton, _) => {
-            let start = match &r_inv {
-                Some(_) if spectral_radius(&p.a)? < 1.0 => Mat::zeros(n, n),
-                Some(r_inv) => doubling(&p, r_inv)?.0,
+            let (x, it) = match r_inv {
+                // K0 = 0 makes a − b K0 = a stable whatever s is (the gain of X0 = 0 is
+                // r⁻¹ s', which need not be).
+                Some(_) if spectral_radius(&p.a)? < 1.0 => newton_from_gain(p, Mat::zeros(m, n), 60)?,
+                Some(r_inv) => newton(p, doubling(p, r_inv)?.0, 60)?,
                 // Hewer's guarantee of stabilizing gains needs r > 0: start from the iteration.
-                None => iteration(&p)?.0,
+                None => newton(p, iteration(p)?.0, 60)?,
             };
-            newton(&p, start, 60)?
+            (x, it, "newton")
         }
         // Eigenvectors lose digits when they are ill-conditioned: one or two Newton steps
         // restore them (Söderström ex. 6.23; docs/algorithms.md, "Newton–Hewer").
-        (DareMethod::Eigen, Some(r_inv)) => newton(&p, eigen(&p, r_inv)?, 2)?,
+        (DareMethod::Eigen, Some(r_inv)) => {
+            let (x0, used) = eigen(p, r_inv)?;
+            let (x, it) = newton(p, x0, 2)?;
+            (x, it, used)
+        }
         (DareMethod::Eigen, None) => {
             return Err(Error::arg("r", "must be invertible for method \"eigen\" (use \"doubling\" or \"iteration\")"))
         }
     };
-    let solution = finish_dare(&p, sym(&x), iterations)?;
+    let solution = finish_dare(p, sym(&x), iterations, used)?;
     if method != DareMethod::Doubling || solution.residual <= REFINE_ABOVE {
         return Ok(solution);
     }
     // Doubling loses digits on ill-conditioned problems (e.g. r = 1e-6 with a singular a:
     // relative residual 1e-3): Newton steps from its stabilizing solution restore them.
-    let refined = newton(&p, to_mat(&solution.x, n), 3)
-        .and_then(|(x, more)| finish_dare(&p, sym(&x), solution.iterations + more));
+    let refined = newton(p, to_mat(&solution.x, n), 3)
+        .and_then(|(x, more)| finish_dare(p, sym(&x), solution.iterations + more, used));
     Ok(match refined {
         Ok(better) if better.residual < solution.residual => better,
         _ => solution,
     })
+}
+
+/// When the method asked for found no stabilizing solution: Newton–Hewer from a stabilizing
+/// gain (ex. 6.23), then the eigenvectors of the extended pencil refined by Newton steps. The
+/// first answer with a residual at rounding level wins, else the stabilizing one with the
+/// smaller residual; [`Error::NoStabilizingSolution`] (with the method's own reason) when
+/// neither finds a stabilizing solution.
+///
+/// A fallback's answer must also have converged and keep its closed loop clear of the unit
+/// circle by [`FALLBACK_MARGIN`]: when there is no stabilizing solution, Newton–Hewer still
+/// converges (linearly) towards the maximal solution, whose closed loop has an eigenvalue on
+/// the circle, and stops within rounding of it.
+#[cold]
+fn dare_fallbacks(p: &Problem, first_problem: String) -> Result<RiccatiSolution> {
+    let newton_limit = 60;
+    let by_newton = stabilizing_gain(p)
+        .and_then(|k0| newton_from_gain(p, k0, newton_limit))
+        .and_then(|(x, it)| finish_dare(p, sym(&x), it, "newton"))
+        .and_then(|sol| clear_of_unit_circle(sol, newton_limit));
+    if matches!(&by_newton, Ok(sol) if sol.residual <= REFINE_ABOVE) {
+        return by_newton;
+    }
+    let refine_limit = 10;
+    let by_pencil = pencil(p)
+        .and_then(|x| newton(p, x, refine_limit))
+        .and_then(|(x, it)| finish_dare(p, sym(&x), it, "pencil"))
+        .and_then(|sol| clear_of_unit_circle(sol, refine_limit));
+    match (by_newton, by_pencil) {
+        (Ok(by_newton), Ok(by_pencil)) => {
+            Ok(if by_pencil.residual < by_newton.residual { by_pencil } else { by_newton })
+        }
+        (Ok(sol), Err(_)) | (Err(_), Ok(sol)) => Ok(sol),
+        (Err(_), Err(_)) => Err(no_solution(format!(
+            "{first_problem}; neither Newton–Hewer from a stabilizing gain nor the extended pencil found one"
+        ))),
+    }
+}
+
+/// How far inside the unit circle a fallback's closed loop must stay. A spectral density
+/// with a double zero on the circle perturbed by δ moves the closed-loop eigenvalues by about
+/// √δ, so with rounding errors (δ ≈ 1e-16) closed-loop radii above 1 − 1e-8 cannot tell a
+/// stabilizing solution from the maximal, non-stabilizing one.
+const FALLBACK_MARGIN: f64 = 1e-8;
+
+/// `sol` unless its Newton iteration hit `limit` without converging or its closed loop is
+/// within [`FALLBACK_MARGIN`] of the unit circle.
+fn clear_of_unit_circle(sol: RiccatiSolution, limit: usize) -> Result<RiccatiSolution> {
+    let rho = sol.closed_loop_eigenvalues.iter().map(|(re, im)| re.hypot(*im)).fold(0.0, f64::max);
+    if sol.iterations >= limit || rho >= 1.0 - FALLBACK_MARGIN {
+        return Err(no_solution(format!(
+            "{} approached a solution with closed-loop spectral radius {rho:.10} (unit-circle modes)",
+            sol.method
+        )));
+    }
+    Ok(sol)
+}
+
+/// A gain K with ρ(a − bK) < 1: K = 0 when a is stable; else the gain of the stabilizing
+/// solution of the auxiliary DARE (a, b, q = I, r = I, s = 0), which exists whenever (a, b) is
+/// stabilizable (q = I makes every mode detectable) and which doubling finds from zero.
+fn stabilizing_gain(p: &Problem) -> Result<Mat<f64>> {
+    let (n, m) = (p.a.nrows(), p.b.ncols());
+    if spectral_radius(&p.a)? < 1.0 {
+        return Ok(Mat::zeros(m, n));
+    }
+    let identity_m = Mat::<f64>::identity(m, m);
+    let auxiliary = Problem {
+        a: p.a.clone(),
+        b: p.b.clone(),
+        q: Mat::identity(n, n),
+        r: identity_m.clone(),
+        s: Mat::zeros(n, m),
+        e: None,
+    };
+    let (x, _) = doubling(&auxiliary, &identity_m)?;
+    let k = dare_gain(&auxiliary, &x).ok_or_else(|| no_solution("no stabilizing gain: b'Xb + r is singular"))?;
+    if spectral_radius(&(&p.a - &p.b * &k))? >= 1.0 {
+        return Err(no_solution("(a, b) is not stabilizable: no gain makes a − bK stable"));
+    }
+    Ok(k)
 }
 
 /// Relative residual above which a doubling solution is refined by Newton steps.
@@ -343,17 +452,11 @@ fn iteration(p: &Problem) -> Result<(Mat<f64>, usize)> {
 /// Newton–Hewer from X0 (whose gain must be stabilizing): X_{k+1} solves
 /// X = A_k' X A_k + [I, −K_k] J [I, −K_k]' with A_k = a − b K_k (ex. 6.23).
 fn newton(p: &Problem, x0: Mat<f64>, max_iter: usize) -> Result<(Mat<f64>, usize)> {
-    let n = p.a.nrows();
     let mut x = x0;
     let mut previous = f64::INFINITY;
     for it in 1..=max_iter {
         let k = dare_gain(p, &x).ok_or_else(|| no_solution("b'Xb + r is singular at a Newton step"))?;
-        let acl = &p.a - &p.b * &k;
-        let sk = &p.s * &k;
-        let c = sym(&(&p.q - &sk - sk.transpose() + k.transpose() * &p.r * &k));
-        let next = solve_discrete_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&c), n)
-            .map_err(|_| no_solution("a Newton step met a closed loop with eigenvalues λ_i λ_j = 1"))?;
-        let next = sym(&to_mat(&next, n));
+        let next = newton_step(p, &k)?;
         let change = (&next - &x).norm_max();
         x = next;
         if converged(change, previous, x.norm_max()) {
@@ -364,17 +467,39 @@ fn newton(p: &Problem, x0: Mat<f64>, max_iter: usize) -> Result<(Mat<f64>, usize
     Ok((x, max_iter))
 }
 
-/// Stable invariant subspace of the symplectic matrix, control form (docs/algorithms.md, "Eigenvector method").
-fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
+/// One Newton–Hewer step for the gain K: the X of X = (a − bK)' X (a − bK) + q − sK − K's' +
+/// K'rK, the cost of the closed loop a − bK (ex. 6.23).
+fn newton_step(p: &Problem, k: &Mat<f64>) -> Result<Mat<f64>> {
+    let n = p.a.nrows();
+    let acl = &p.a - &p.b * k;
+    let sk = &p.s * k;
+    let c = sym(&(&p.q - &sk - sk.transpose() + k.transpose() * &p.r * k));
+    let next = solve_discrete_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&c), n)
+        .map_err(|_| no_solution("a Newton step met a closed loop with eigenvalues λ_i λ_j = 1"))?;
+    Ok(sym(&to_mat(&next, n)))
+}
+
+/// Newton–Hewer started from a gain K0 with a − b K0 stable instead of from an X0: the first
+/// step is the cost of K0, after which every gain stays stabilizing (ex. 6.23).
+fn newton_from_gain(p: &Problem, k0: Mat<f64>, max_iter: usize) -> Result<(Mat<f64>, usize)> {
+    let x1 = newton_step(p, &k0)?;
+    let (x, it) = newton(p, x1, max_iter.saturating_sub(1).max(1))?;
+    Ok((x, it + 1))
+}
+
+/// Stable invariant subspace of the symplectic matrix, control form (docs/algorithms.md,
+/// "Eigenvector method"); when a − b r⁻¹ s' is singular, that of the extended pencil instead
+/// ([`pencil`]). Returns X and which of the two produced it.
+fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, &'static str)> {
     let n = p.a.nrows();
     let rs = r_inv * p.s.transpose();
     let a0 = &p.a - &p.b * &rs;
     let g = &p.b * r_inv * p.b.transpose();
     let q0 = &p.q - &p.s * &rs;
-    let a_inv_t = invert(&a0)
-        .ok_or_else(|| Error::arg("a", "a − b r⁻¹ s' must be invertible for method \"eigen\" (use \"doubling\")"))?
-        .transpose()
-        .to_owned();
+    let Some(a_inv) = invert(&a0) else {
+        return Ok((pencil(p)?, "pencil"));
+    };
+    let a_inv_t = a_inv.transpose().to_owned();
     let mut z = Mat::<f64>::zeros(2 * n, 2 * n);
     let top_left = &a0 + &g * &a_inv_t * &q0;
     let top_right = -(&g * &a_inv_t);
@@ -387,7 +512,66 @@ fn eigen(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
             z[(n + i, n + j)] = a_inv_t[(i, j)];
         }
     }
-    stable_subspace(&z, n, |l| l.norm() < 1.0, "inside the unit circle")
+    Ok((stable_subspace(&z, n, |l| l.norm() < 1.0, "inside the unit circle")?, "eigen"))
+}
+
+/// The stabilizing X from the generalized eigenvectors of the extended pencil λ L − M of size
+/// 2n + m (Söderström (6.125)–(6.129) and the remark after them, here in control form), which
+/// needs neither r nor a − b r⁻¹ s' invertible:
+///
+/// ```text
+/// M = [[a, 0, b], [−q, I, −s], [s', 0, r]],      L = [[I, 0, 0], [0, a', 0], [0, −b', 0]]
+/// ```
+///
+/// For the stabilizing X with gain K and (a − bK) v = λ v, the vector [v; X v; −K v] solves
+/// M w = λ L w: the first block row is the closed loop, the third is (b'Xb + r) K = b'Xa + s'
+/// and the second is the DARE. So the n eigenvalues inside the unit circle are the closed-loop
+/// ones and X = U2 U1⁻¹ from their eigenvectors; the other n + m are their reciprocals or
+/// infinite. Eigenvectors of a defective eigenvalue lose digits; the caller refines by Newton.
+fn pencil(p: &Problem) -> Result<Mat<f64>> {
+    let (n, m) = (p.a.nrows(), p.b.ncols());
+    let size = 2 * n + m;
+    let mut big_m = Mat::<f64>::zeros(size, size);
+    let mut big_l = Mat::<f64>::zeros(size, size);
+    for i in 0..n {
+        for j in 0..n {
+            big_m[(i, j)] = p.a[(i, j)];
+            big_m[(n + i, j)] = -p.q[(i, j)];
+            big_l[(n + i, n + j)] = p.a[(j, i)];
+        }
+        big_m[(n + i, n + i)] = 1.0;
+        big_l[(i, i)] = 1.0;
+        for j in 0..m {
+            big_m[(i, 2 * n + j)] = p.b[(i, j)];
+            big_m[(n + i, 2 * n + j)] = -p.s[(i, j)];
+            big_m[(2 * n + j, i)] = p.s[(i, j)];
+            big_l[(2 * n + j, n + i)] = -p.b[(i, j)];
+        }
+    }
+    for i in 0..m {
+        for j in 0..m {
+            big_m[(2 * n + i, 2 * n + j)] = p.r[(i, j)];
+        }
+    }
+    let gevd = big_m.generalized_eigen(&big_l).map_err(|_| no_solution("the pencil's QZ did not converge"))?;
+    let (u, alpha, beta) = (gevd.U(), gevd.S_a().column_vector(), gevd.S_b().column_vector());
+    // λ = α/β inside the unit circle (β = 0: infinite).
+    let chosen: Vec<usize> = (0..size).filter(|&i| alpha[i].norm() < beta[i].norm()).collect();
+    if chosen.len() != n {
+        return Err(no_solution(format!(
+            "{} of the pencil's {size} eigenvalues are inside the unit circle, not {n}: eigenvalues on the circle",
+            chosen.len()
+        )));
+    }
+    // X U1 = U2  ⇔  U1' X' = U2'
+    let u1t = Mat::<c64>::from_fn(n, n, |i, j| u[(j, chosen[i])]);
+    let u2t = Mat::<c64>::from_fn(n, n, |i, j| u[(n + j, chosen[i])]);
+    let xt = u1t.partial_piv_lu().solve(&u2t);
+    let x = Mat::<f64>::from_fn(n, n, |i, j| xt[(j, i)].re);
+    if !all_finite(&x) {
+        return Err(no_solution("the pencil's stable eigenvectors have a singular top block"));
+    }
+    Ok(sym(&x))
 }
 
 /// X = Re(U2 U1⁻¹) from the eigenvectors of `z` (2n × 2n) whose eigenvalues pass `stable`.
@@ -424,7 +608,7 @@ fn spectral_radius(a: &Mat<f64>) -> Result<f64> {
 
 /// Post-checks (docs/algorithms.md, "Stabilizing solution"): gain, closed-loop eigenvalues (must be inside the unit
 /// circle), relative residual; the gain is mapped back through e.
-fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize) -> Result<RiccatiSolution> {
+fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize, method: &'static str) -> Result<RiccatiSolution> {
     let k = dare_gain(p, &x).ok_or_else(|| no_solution("b'Xb + r is singular at the solution"))?;
     let acl = &p.a - &p.b * &k;
     let closed_loop_eigenvalues = eigenvalues(&acl)?;
@@ -437,7 +621,7 @@ fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize) -> Result<RiccatiSol
         )));
     }
     let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations })
+    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations, method })
 }
 
 /// Solves the CARE (SciPy's `solve_continuous_are(a, b, q, r, e, s)`): the stable invariant
@@ -503,5 +687,87 @@ pub fn solve_continuous_are(
     let res = p.a.transpose() * &x + &x * &p.a - k.transpose() * &p.r * &k + &p.q;
     let residual = res.norm_max() / x.norm_max().max(1.0);
     let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations })
+    Ok(RiccatiSolution { x: from_mat(&x), gain, closed_loop_eigenvalues, residual, iterations, method: "hamiltonian" })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dare(
+        a: &[f64],
+        b: &[f64],
+        q: &[f64],
+        r: &[f64],
+        s: &[f64],
+        n: usize,
+        method: DareMethod,
+    ) -> Result<RiccatiSolution> {
+        solve_discrete_are(a, b, q, r, None, Some(s), n, b.len() / n, method)
+    }
+
+    /// Söderström ex. 7.1: y(t) − 0.8 y(t−1) = e(t) + 2 e(t−1), var e = 1, in observer form
+    /// (F = 0.8, k = 2.8, Q = k², N = k, R = 1): q − s r⁻¹ s' = 0 and a − b r⁻¹ s' = −2. The
+    /// stabilizing P = 3 (innovation variance 4, K_pred = 1.3, closed loop −0.5); doubling
+    /// from zero stops at the non-stabilizing P = 0, so the answer comes from a fallback.
+    #[test]
+    fn noninvertible_arma_falls_back_to_newton() {
+        let k = 2.8;
+        for method in [DareMethod::Doubling, DareMethod::Newton, DareMethod::Iteration, DareMethod::Eigen] {
+            let sol = dare(&[0.8], &[1.0], &[k * k], &[1.0], &[k], 1, method).unwrap();
+            assert!((sol.x[0] - 3.0).abs() < 1e-12, "{method:?}: {sol:?}");
+            assert!((sol.gain[0] - 1.3).abs() < 1e-12);
+            assert!((sol.closed_loop_eigenvalues[0].0 + 0.5).abs() < 1e-12);
+            let expected = match method {
+                DareMethod::Doubling | DareMethod::Newton => "newton",
+                DareMethod::Iteration => "iteration",
+                DareMethod::Eigen => "eigen",
+            };
+            assert_eq!(sol.method, expected);
+        }
+    }
+
+    #[test]
+    fn singular_decorrelated_a_uses_the_pencil() {
+        // C = q² + 2.5 q (zeros −2.5, 0), A = q² − 0.5 q: a − b r⁻¹ s' = (F − k H)' is singular.
+        let (f, k) = ([0.5, 1.0, 0.0, 0.0], [3.0, 0.0]);
+        let a = [f[0], f[2], f[1], f[3]];
+        let q = [k[0] * k[0], k[0] * k[1], k[1] * k[0], k[1] * k[1]];
+        let sol = dare(&a, &[1.0, 0.0], &q, &[1.0], &k, 2, DareMethod::Eigen).unwrap();
+        assert_eq!(sol.method, "pencil");
+        // Innovation variance 2.5² = 6.25, so P₁₁ = 5.25; P has rank one.
+        assert!((sol.x[0] - 5.25).abs() < 1e-12 && sol.x[1..].iter().all(|v| v.abs() < 1e-12), "{sol:?}");
+        assert!(sol.residual < 1e-14);
+    }
+
+    #[test]
+    fn pencil_alone_gives_the_stabilizing_solution() {
+        let k = 2.8;
+        let p = problem(&[0.8], &[1.0], &[k * k], &[1.0], None, Some(&[k]), 1, 1).unwrap();
+        let x = pencil(&p).unwrap();
+        assert!((x[(0, 0)] - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ordinary_problems_keep_the_method_asked_for() {
+        let (a, b, q, r) = ([0.9, 0.1, 0.0, 1.1], [0.0, 1.0], [1.0, 0.0, 0.0, 1.0], [1.0]);
+        for (method, name) in
+            [(DareMethod::Doubling, "doubling"), (DareMethod::Newton, "newton"), (DareMethod::Eigen, "eigen")]
+        {
+            let sol = solve_discrete_are(&a, &b, &q, &r, None, None, 2, 1, method).unwrap();
+            assert_eq!(sol.method, name);
+        }
+    }
+
+    #[test]
+    fn unit_circle_noise_zero_still_has_no_stabilizing_solution() {
+        // C = q + 1: the zero −1 is on the circle; only a maximal solution exists. (The
+        // iteration's 200 000 slow steps are left to the Python tests: unoptimized they take
+        // most of a minute.)
+        let (f, k) = (0.5, 1.5);
+        for method in [DareMethod::Doubling, DareMethod::Newton, DareMethod::Eigen] {
+            let err = dare(&[f], &[1.0], &[k * k], &[1.0], &[k], 1, method).unwrap_err();
+            assert!(matches!(err, Error::NoStabilizingSolution { .. }), "{method:?}: {err}");
+        }
+    }
 }
