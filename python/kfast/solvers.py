@@ -53,7 +53,8 @@ def solve_discrete_are(a, b, q, r, e=None, s=None, method: str = "doubling", bal
 
 def dare(a, b, q, r, e=None, s=None, method: str = "doubling") -> dict:
     """``solve_discrete_are`` with the details: a dict with x, gain K = (b'Xb + r)^-1 (b'Xa + s'),
-    closed_loop_eigenvalues of a - bK, residual (relative) and iterations."""
+    closed_loop_eigenvalues of a - bK, residual (relative), iterations and method (the method
+    that produced x: the one asked for, or a fallback, "newton" or "pencil")."""
     if method not in DARE_METHODS:
         raise _kfast.KfastError(f"method: expected one of {DARE_METHODS}, got {method!r}")
     return _kfast.dare(

@@ -215,3 +215,12 @@ def test_indefinite_cross_term_systems_are_solved(seed):
         close(sol["x"], want, rtol)
         assert dare_residual(a, b, q, r, e, s, sol["x"]) <= 1e-10, method
         assert np.abs(sol["closed_loop_eigenvalues"]).max() < 1
+
+
+def test_the_solution_names_the_method_that_produced_it():
+    # Doubling from zero stops at the non-stabilizing X = 0 here; a fallback produced X.
+    F, H, Q, R, N = arma_observer(CASES["arma_noninvertible"]["a"], CASES["arma_noninvertible"]["c"])
+    assert dare(F.T, H.T, Q, R, s=N)["method"] in ("newton", "pencil")
+    # An ordinary problem is solved by the method asked for.
+    assert dare(np.array([[0.5]]), np.eye(1), np.eye(1), np.eye(1))["method"] == "doubling"
+    assert dare(np.array([[0.5]]), np.eye(1), np.eye(1), np.eye(1), method="eigen")["method"] == "eigen"

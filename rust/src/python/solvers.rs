@@ -84,6 +84,7 @@ fn solution_dict<'py>(
         sol.closed_loop_eigenvalues.iter().map(|&(re, im)| numpy::Complex64::new(re, im)).collect();
     dict.set_item("closed_loop_eigenvalues", numpy::PyArray1::from_vec(py, eig))?;
     dict.set_item("residual", sol.residual)?;
+    dict.set_item("method", sol.method)?;
     dict.set_item("iterations", sol.iterations)?;
     Ok(dict)
 }
