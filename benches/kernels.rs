@@ -18,7 +18,8 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use kfast::{
     discretize, expm, filter, filter_batch, loglik, smooth, solve_discrete_are, solve_discrete_lyapunov, Batch,
-    BatchOutputs, DareMethod, FilterOptions, KalmanFilter, LinearGaussian, Matrices, Series, StepMatrix, UpdateForm,
+    BatchOutputs, DareMethod, FilterOptions, KalmanFilter, LinearGaussian, Matrices, RiccatiProblem, Series,
+    StepMatrix, UpdateForm,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -278,7 +279,7 @@ fn bench_dare(c: &mut Criterion) {
         let (n, m) = (mats.n, mats.m);
         let (a, b) = (transpose(&mats.f, n, n), transpose(&mats.h, m, n));
         for (method, name) in METHODS {
-            let run = || solve_discrete_are(&a, &b, &mats.q, &mats.r, None, None, n, m, method);
+            let run = || solve_discrete_are(RiccatiProblem::new(&a, &b, &mats.q, &mats.r, n, m), method);
             let sol = run().unwrap_or_else(|e| panic!("DARE {label} {name}: {e}"));
             assert!(sol.residual < 1e-8, "DARE {label} {name}: residual {}", sol.residual);
             g.bench_function(BenchmarkId::new(name, label), |bch| bch.iter(|| black_box(run()).unwrap()));

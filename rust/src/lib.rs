@@ -33,9 +33,9 @@
 //!   default), the covariance recursion computed once when it is shared.
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
-//! - [`solve_discrete_are`] / [`solve_continuous_are`] → [`RiccatiSolution`] (SciPy's
-//!   conventions, [`DareMethod`]), [`solve_discrete_lyapunov`], [`solve_continuous_lyapunov`],
-//!   [`stationary_covariance`].
+//! - [`solve_discrete_are`] / [`solve_continuous_are`] of a [`RiccatiProblem`] →
+//!   [`RiccatiSolution`] (SciPy's conventions, [`DareMethod`]), [`solve_discrete_lyapunov`],
+//!   [`solve_continuous_lyapunov`], [`stationary_covariance`].
 //! - [`expm`], [`discretize`] / [`discretize_steps`] → [`Discretized`]: Van Loan sampling of
 //!   continuous-time models.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
@@ -74,6 +74,6 @@ pub use linear::smoother::{
 };
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,
-    stationary_covariance, DareMethod, RiccatiSolution,
+    stationary_covariance, DareMethod, RiccatiProblem, RiccatiSolution,
 };
 pub use sampling::{discretize, discretize_steps, expm, Discretized};

@@ -18,7 +18,7 @@
 mod common;
 
 use common::{add, eye, matmul, max_abs, scale, solve, spectral_radius_gelfand, sub, transpose, Rng};
-use kfast::{solve_continuous_are, solve_discrete_are, DareMethod, Error, Result, RiccatiSolution};
+use kfast::{solve_continuous_are, solve_discrete_are, DareMethod, Error, Result, RiccatiProblem, RiccatiSolution};
 
 const METHODS: [DareMethod; 4] = [DareMethod::Doubling, DareMethod::Newton, DareMethod::Iteration, DareMethod::Eigen];
 
@@ -65,21 +65,22 @@ impl System {
     }
 
     fn dare(&self, method: DareMethod) -> Result<RiccatiSolution> {
-        solve_discrete_are(
-            &self.a,
-            &self.b,
-            &self.q,
-            &self.r,
-            self.e.as_deref(),
-            self.s.as_deref(),
-            self.n,
-            self.m,
-            method,
-        )
+        solve_discrete_are(self.problem(), method)
     }
 
     fn care(&self) -> Result<RiccatiSolution> {
-        solve_continuous_are(&self.a, &self.b, &self.q, &self.r, self.e.as_deref(), self.s.as_deref(), self.n, self.m)
+        solve_continuous_are(self.problem())
+    }
+
+    fn problem(&self) -> RiccatiProblem<'_> {
+        let mut p = RiccatiProblem::new(&self.a, &self.b, &self.q, &self.r, self.n, self.m);
+        if let Some(e) = &self.e {
+            p = p.with_e(e);
+        }
+        if let Some(s) = &self.s {
+            p = p.with_s(s);
+        }
+        p
     }
 
     /// ‖DARE residual‖ / (sum of the norms of its four terms), and the gain computed here.
@@ -224,12 +225,12 @@ fn scalar_dare_and_care_match_their_closed_forms() -> Result<()> {
         let (bq, bl) = (b * b, r * (1.0 - a * a) - q * b * b);
         let want = (-bl + (bl * bl + 4.0 * bq * q * r).sqrt()) / (2.0 * bq);
         for method in METHODS {
-            let sol = solve_discrete_are(&[a], &[b], &[q], &[r], None, None, 1, 1, method)?;
+            let sol = solve_discrete_are(RiccatiProblem::new(&[a], &[b], &[q], &[r], 1, 1), method)?;
             common::assert_close(&format!("DARE a={a} {method:?}"), &sol.x, &[want], 1e-12, 0.0);
         }
         // Scalar CARE 2ax − (bx)²/r + q = 0: x = r(a + √(a² + b²q/r))/b².
         let want = r * (a + (a * a + b * b * q / r).sqrt()) / (b * b);
-        let sol = solve_continuous_are(&[a], &[b], &[q], &[r], None, None, 1, 1)?;
+        let sol = solve_continuous_are(RiccatiProblem::new(&[a], &[b], &[q], &[r], 1, 1))?;
         common::assert_close(&format!("CARE a={a}"), &sol.x, &[want], 1e-12, 0.0);
     }
     Ok(())
@@ -242,7 +243,7 @@ fn scalar_dare_with_a_cross_term_matches_its_closed_form() -> Result<()> {
     // x² − 4x − 1 = 0, whose stabilizing root is x = 2 + √5 (closed loop ã/(x + 1) ≈ −0.38).
     let want = 2.0 + 5f64.sqrt();
     for method in [DareMethod::Doubling, DareMethod::Iteration, DareMethod::Eigen] {
-        let sol = solve_discrete_are(&[0.0], &[1.0], &[5.0], &[1.0], None, Some(&[2.0]), 1, 1, method)?;
+        let sol = solve_discrete_are(RiccatiProblem::new(&[0.0], &[1.0], &[5.0], &[1.0], 1, 1).with_s(&[2.0]), method)?;
         common::assert_close(&format!("{method:?}"), &sol.x, &[want], 1e-12, 0.0);
     }
     Ok(())
@@ -251,7 +252,10 @@ fn scalar_dare_with_a_cross_term_matches_its_closed_form() -> Result<()> {
 #[test]
 fn newton_with_a_cross_term_returns_the_stabilizing_solution() -> Result<()> {
     // The system of scalar_dare_with_a_cross_term_matches_its_closed_form.
-    let sol = solve_discrete_are(&[0.0], &[1.0], &[5.0], &[1.0], None, Some(&[2.0]), 1, 1, DareMethod::Newton)?;
+    let sol = solve_discrete_are(
+        RiccatiProblem::new(&[0.0], &[1.0], &[5.0], &[1.0], 1, 1).with_s(&[2.0]),
+        DareMethod::Newton,
+    )?;
     common::assert_close("Newton", &sol.x, &[2.0 + 5f64.sqrt()], 1e-12, 0.0);
     // And the random systems the main test skips for Newton.
     for seed in 0..SEEDS {
@@ -284,22 +288,22 @@ fn no_stabilizing_solution_is_an_error() {
     for method in METHODS {
         assert_no_stabilizing(
             &format!("DARE {method:?}"),
-            solve_discrete_are(&a, &b, &eye(2), &[1.0], None, None, 2, 1, method),
+            solve_discrete_are(RiccatiProblem::new(&a, &b, &eye(2), &[1.0], 2, 1), method),
         );
     }
     // A unit-circle mode without noise: the only solution is X = 0 with closed loop 1. (Not
     // `Iteration`: it creeps towards 0 like 1/k and fails only at its iteration cap, 200 000
     // steps, which takes 20 s in a debug build.)
     for method in [DareMethod::Doubling, DareMethod::Newton, DareMethod::Eigen] {
-        let got = solve_discrete_are(&[1.0], &[1.0], &[0.0], &[1.0], None, None, 1, 1, method);
+        let got = solve_discrete_are(RiccatiProblem::new(&[1.0], &[1.0], &[0.0], &[1.0], 1, 1), method);
         assert_no_stabilizing(&format!("DARE random walk {method:?}"), got);
     }
     // CARE: the mode +1 is not reached by the input.
     let a = [1.0, 0.0, 0.0, -1.0];
-    assert_no_stabilizing("CARE", solve_continuous_are(&a, &b, &eye(2), &[1.0], None, None, 2, 1));
+    assert_no_stabilizing("CARE", solve_continuous_are(RiccatiProblem::new(&a, &b, &eye(2), &[1.0], 2, 1)));
     // Scalar: b = 0 and a = 2; the only solution x = −1/3 leaves the closed loop at 2.
     for method in METHODS {
-        let got = solve_discrete_are(&[2.0], &[0.0], &[1.0], &[1.0], None, None, 1, 1, method);
+        let got = solve_discrete_are(RiccatiProblem::new(&[2.0], &[0.0], &[1.0], &[1.0], 1, 1), method);
         assert_no_stabilizing(&format!("DARE b = 0 {method:?}"), got);
     }
 }

@@ -146,7 +146,7 @@ pub(super) fn dare<'py>(
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     let method = parse_method(method)?;
     let (av, bv, qv, rv, ev, sv, n, m) = riccati_args(&a, &b, &q, &r, e.as_ref(), s.as_ref())?;
-    let sol = py.detach(|| crate::solve_discrete_are(av, bv, qv, rv, ev, sv, n, m, method))?;
+    let sol = py.detach(|| crate::solve_discrete_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m), method))?;
     solution_dict(py, sol, n, m)
 }
 
@@ -163,7 +163,7 @@ pub(super) fn care<'py>(
     s: Option<Array<'py>>,
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     let (av, bv, qv, rv, ev, sv, n, m) = riccati_args(&a, &b, &q, &r, e.as_ref(), s.as_ref())?;
-    let sol = py.detach(|| crate::solve_continuous_are(av, bv, qv, rv, ev, sv, n, m))?;
+    let sol = py.detach(|| crate::solve_continuous_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m)))?;
     solution_dict(py, sol, n, m)
 }
 
@@ -208,4 +208,21 @@ pub(super) fn discretize<'py>(
         dict.set_item("Bd", to_array(py, &d.bd, &[steps, n, k])?)?;
     }
     Ok(dict)
+}
+
+/// The Riccati problem of the given (validated-shape) arrays.
+#[allow(clippy::too_many_arguments)]
+fn riccati_problem<'a>(
+    a: &'a [f64],
+    b: &'a [f64],
+    q: &'a [f64],
+    r: &'a [f64],
+    e: Option<&'a [f64]>,
+    s: Option<&'a [f64]>,
+    n: usize,
+    m: usize,
+) -> crate::RiccatiProblem<'a> {
+    let mut p = crate::RiccatiProblem::new(a, b, q, r, n, m);
+    (p.e, p.s) = (e, s);
+    p
 }

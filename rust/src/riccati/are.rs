@@ -90,7 +90,7 @@ impl Problem {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn problem(
+fn checked_problem(
     a: &[f64],
     b: &[f64],
     q: &[f64],
@@ -152,21 +152,54 @@ fn no_solution(problem: impl Into<String>) -> Error {
     Error::NoStabilizingSolution { problem: problem.into() }
 }
 
-/// Solves the DARE (SciPy's `solve_discrete_are(a, b, q, r, e, s)`); `a` is `n × n`, `b`
-/// `n × m`, all row-major.
-#[allow(clippy::too_many_arguments)]
-pub fn solve_discrete_are(
-    a: &[f64],
-    b: &[f64],
-    q: &[f64],
-    r: &[f64],
-    e: Option<&[f64]>,
-    s: Option<&[f64]>,
-    n: usize,
-    m: usize,
-    method: DareMethod,
-) -> Result<RiccatiSolution> {
-    let p = problem(a, b, q, r, e, s, n, m)?;
+/// The matrices of an algebraic Riccati equation with SciPy's names, row-major: `a` (n × n),
+/// `b` (n × m), `q` (n × n), `r` (m × m) and the optional `e` (n × n, identity when absent)
+/// and `s` (n × m, zero when absent). The Kalman filter's DARE is `a = F'`, `b = H'`, `q = Q`,
+/// `r = R`, `s = N` (docs/conventions.md).
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct RiccatiProblem<'a> {
+    /// `a`, n × n.
+    pub a: &'a [f64],
+    /// `b`, n × m.
+    pub b: &'a [f64],
+    /// `q`, n × n, symmetric.
+    pub q: &'a [f64],
+    /// `r`, m × m, symmetric.
+    pub r: &'a [f64],
+    /// `e`, n × n (the descriptor form), or the identity.
+    pub e: Option<&'a [f64]>,
+    /// `s`, n × m (the cross term), or zero.
+    pub s: Option<&'a [f64]>,
+    /// The state size n.
+    pub n: usize,
+    /// The input size m.
+    pub m: usize,
+}
+
+impl<'a> RiccatiProblem<'a> {
+    /// `(a, b, q, r)` for sizes n and m, without `e` and `s`.
+    pub fn new(a: &'a [f64], b: &'a [f64], q: &'a [f64], r: &'a [f64], n: usize, m: usize) -> Self {
+        RiccatiProblem { a, b, q, r, e: None, s: None, n, m }
+    }
+
+    /// The same problem with `e`.
+    pub fn with_e(self, e: &'a [f64]) -> Self {
+        RiccatiProblem { e: Some(e), ..self }
+    }
+
+    /// The same problem with the cross term `s`.
+    pub fn with_s(self, s: &'a [f64]) -> Self {
+        RiccatiProblem { s: Some(s), ..self }
+    }
+}
+
+/// Solves the DARE (SciPy's `solve_discrete_are(a, b, q, r, e, s)`):
+/// `a'Xa − e'Xe − (a'Xb + s)(b'Xb + r)⁻¹(b'Xa + s') + q = 0`, with `method` first and the
+/// fallbacks of docs/algorithms.md ("Stabilizing solution") when it finds no stabilizing X.
+pub fn solve_discrete_are(problem: RiccatiProblem<'_>, method: DareMethod) -> Result<RiccatiSolution> {
+    let RiccatiProblem { a, b, q, r, e, s, n, m } = problem;
+    let p = checked_problem(a, b, q, r, e, s, n, m)?;
     let r_inv = invert(&p.r);
     match solve_dare_by(&p, r_inv.as_ref(), method) {
         // The method found no stabilizing solution or diverged. That does not mean there is
@@ -627,18 +660,9 @@ fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize, method: &'static str
 /// Solves the CARE (SciPy's `solve_continuous_are(a, b, q, r, e, s)`): the stable invariant
 /// subspace of the Hamiltonian matrix, refined by Newton–Kleinman steps (one continuous
 /// Lyapunov solve each). Needs r invertible.
-#[allow(clippy::too_many_arguments)]
-pub fn solve_continuous_are(
-    a: &[f64],
-    b: &[f64],
-    q: &[f64],
-    r: &[f64],
-    e: Option<&[f64]>,
-    s: Option<&[f64]>,
-    n: usize,
-    m: usize,
-) -> Result<RiccatiSolution> {
-    let p = problem(a, b, q, r, e, s, n, m)?;
+pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSolution> {
+    let RiccatiProblem { a, b, q, r, e, s, n, m } = problem;
+    let p = checked_problem(a, b, q, r, e, s, n, m)?;
     let r_inv =
         invert(&p.r).ok_or_else(|| Error::arg("r", "must be invertible for the continuous Riccati equation"))?;
     let rs = &r_inv * p.s.transpose();
@@ -703,7 +727,7 @@ mod tests {
         n: usize,
         method: DareMethod,
     ) -> Result<RiccatiSolution> {
-        solve_discrete_are(a, b, q, r, None, Some(s), n, b.len() / n, method)
+        solve_discrete_are(RiccatiProblem::new(a, b, q, r, n, b.len() / n).with_s(s), method)
     }
 
     /// Söderström ex. 7.1: y(t) − 0.8 y(t−1) = e(t) + 2 e(t−1), var e = 1, in observer form
@@ -743,7 +767,7 @@ mod tests {
     #[test]
     fn pencil_alone_gives_the_stabilizing_solution() {
         let k = 2.8;
-        let p = problem(&[0.8], &[1.0], &[k * k], &[1.0], None, Some(&[k]), 1, 1).unwrap();
+        let p = checked_problem(&[0.8], &[1.0], &[k * k], &[1.0], None, Some(&[k]), 1, 1).unwrap();
         let x = pencil(&p).unwrap();
         assert!((x[(0, 0)] - 3.0).abs() < 1e-12);
     }
@@ -754,7 +778,7 @@ mod tests {
         for (method, name) in
             [(DareMethod::Doubling, "doubling"), (DareMethod::Newton, "newton"), (DareMethod::Eigen, "eigen")]
         {
-            let sol = solve_discrete_are(&a, &b, &q, &r, None, None, 2, 1, method).unwrap();
+            let sol = solve_discrete_are(RiccatiProblem::new(&a, &b, &q, &r, 2, 1), method).unwrap();
             assert_eq!(sol.method, name);
         }
     }

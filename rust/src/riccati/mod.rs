@@ -4,5 +4,5 @@
 pub mod are;
 pub mod lyapunov;
 
-pub use are::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiSolution};
+pub use are::{solve_continuous_are, solve_discrete_are, DareMethod, RiccatiProblem, RiccatiSolution};
 pub use lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov, stationary_covariance};
