@@ -24,6 +24,7 @@ __all__ = [
 ]
 
 _FORMS = ("joseph", "standard")
+_MATRICES = ("F", "H", "Q", "R", "B", "D", "N")
 
 
 @dataclass(frozen=True, repr=False)
@@ -188,6 +189,19 @@ class LinearGaussian:
         self.B: Optional[np.ndarray] = arrays["B"]
         self.D: Optional[np.ndarray] = arrays["D"]
         self.N: Optional[np.ndarray] = arrays["N"]
+
+    def __getstate__(self) -> dict:
+        """Pickling and copying keep the matrices (and any attributes a subclass adds); the
+        compiled core is rebuilt from them, validating them again."""
+        state = self.__dict__.copy()
+        del state["_core"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        arrays: dict = {k: (None if state[k] is None else frozen_copy(k, state[k], scalar_shape=(1, 1))) for k in _MATRICES}
+        self.__dict__.update(state)
+        self.__dict__.update(arrays)
+        self._core = _kfast.LinearGaussian(**arrays)
 
     @classmethod
     def from_continuous(cls, A, Qc, H, R, dt=None, B=None, D=None, times=None) -> "LinearGaussian":

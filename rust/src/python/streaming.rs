@@ -4,12 +4,13 @@
 use std::sync::Arc;
 
 use numpy::ndarray::IxDyn;
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
 use super::model::PyLinearGaussian;
-use super::{as_float64, non_negative, parse_form, prior, slice, to_array, vector, KfastError};
-use crate::linear::filter::{self, UpdateForm};
+use super::{as_float64, data, non_negative, parse_form, prior, slice, to_array, vector, KfastError};
+use crate::linear::filter::{self, KalmanFilter, UpdateForm};
 use crate::linear::model::LinearGaussian;
 use crate::linear::smoother::FixedLagSmoother;
 
@@ -57,14 +58,140 @@ fn with_step_data<T>(
     Ok(f(ys, us)?)
 }
 
+/// What pickling needs besides the Rust state: the constructor's model object (and its
+/// compiled model) and prior.
+struct Origin {
+    model: Py<PyAny>,
+    core: Arc<LinearGaussian>,
+    x0: Vec<f64>,
+    p0: Vec<f64>,
+}
+
+impl Origin {
+    /// The constructor's first arguments: (model, x0, P0).
+    fn args<'py>(&self, py: Python<'py>) -> PyResult<[Bound<'py, PyAny>; 3]> {
+        let n = self.x0.len();
+        Ok([
+            self.model.bind(py).clone(),
+            to_array(py, &self.x0, &[n])?.into_any(),
+            to_array(py, &self.p0, &[n, n])?.into_any(),
+        ])
+    }
+}
+
+fn form_name(form: UpdateForm) -> &'static str {
+    match form {
+        UpdateForm::Joseph => "joseph",
+        UpdateForm::Standard => "standard",
+    }
+}
+
+/// The data of the update made at the current step (in buffers reused from step to step), so
+/// that unpickling can replay it: recomputing the update's by-products that the time update
+/// reads gives the same bits and needs no export of the filter's internals.
+#[derive(Default)]
+struct StepData {
+    y: Vec<f64>,
+    u: Vec<f64>,
+    has_u: bool,
+    loglik_before: f64,
+}
+
+impl StepData {
+    fn record(&mut self, y: &[f64], u: Option<&[f64]>, loglik_before: f64) {
+        self.y.clear();
+        self.y.extend_from_slice(y);
+        self.u.clear();
+        self.u.extend_from_slice(u.unwrap_or_default());
+        self.has_u = u.is_some();
+        self.loglik_before = loglik_before;
+    }
+
+    fn u(&self) -> Option<&[f64]> {
+        self.has_u.then_some(self.u.as_slice())
+    }
+}
+
+/// `kf.update(y, u)`, recording the data for pickling.
+fn update_recorded(kf: &mut KalmanFilter, last: &mut StepData, y: &[f64], u: Option<&[f64]>) -> crate::Result<()> {
+    let before = kf.loglik();
+    kf.update(y, u)?;
+    last.record(y, u, before);
+    Ok(())
+}
+
+/// The filter's state for pickling: the step t, the prediction x(t|t-1), P(t|t-1), the
+/// log-likelihood before the update at t and, if it was made, that update's data.
+fn filter_state<'py>(py: Python<'py>, kf: &KalmanFilter, last: &StepData) -> PyResult<Bound<'py, PyDict>> {
+    let n = kf.model().n_states();
+    let (x_pred, p_pred) = kf.prediction();
+    let state = PyDict::new(py);
+    state.set_item("t", kf.t())?;
+    state.set_item("x_pred", to_array(py, x_pred, &[n])?)?;
+    state.set_item("P_pred", to_array(py, p_pred, &[n, n])?)?;
+    if kf.is_updated() {
+        state.set_item("loglik", last.loglik_before)?;
+        let update = PyDict::new(py);
+        update.set_item("y", to_array(py, &last.y, &[last.y.len()])?)?;
+        update.set_item("u", last.u().map(|u| to_array(py, u, &[u.len()])).transpose()?)?;
+        state.set_item("update", update)?;
+    } else {
+        state.set_item("loglik", kf.loglik())?;
+        state.set_item("update", py.None())?;
+    }
+    Ok(state)
+}
+
+fn item<'py>(state: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    state
+        .get_item(key)?
+        .ok_or_else(|| KfastError::new_err(format!("state: has no {key:?} entry (not a pickled kfast filter?)")))
+}
+
+/// A float64 array of any shape, read as one contiguous slice.
+fn flat<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    Ok(as_float64(py, name, value)?.readonly())
+}
+
+/// The filter of [`filter_state`]'s `state` with the `model` and `form` it was made with, and
+/// the data of its update at the current step, which it replays.
+fn resume_filter(
+    py: Python<'_>,
+    model: &Arc<LinearGaussian>,
+    form: UpdateForm,
+    state: &Bound<'_, PyDict>,
+) -> PyResult<(KalmanFilter, StepData)> {
+    let t: usize = item(state, "t")?.extract()?;
+    let loglik: f64 = item(state, "loglik")?.extract()?;
+    let x_pred = vector(py, "x_pred", &item(state, "x_pred")?)?;
+    let p_pred = flat(py, "P_pred", &item(state, "P_pred")?)?;
+    let p_pred = data("P_pred", &p_pred, 2)?;
+    let mut kf = KalmanFilter::resume(model.clone(), slice("x_pred", &x_pred)?, p_pred, form, t, loglik)?;
+    let mut last = StepData::default();
+    let update = item(state, "update")?;
+    if !update.is_none() {
+        let update = update.cast_into::<PyDict>()?;
+        let u = item(&update, "u")?;
+        let u = (!u.is_none()).then_some(u);
+        with_step_data(py, Some(&item(&update, "y")?), u.as_ref(), |y, u| {
+            update_recorded(&mut kf, &mut last, y.unwrap_or_default(), u)
+        })?;
+    }
+    Ok((kf, last))
+}
+
 /// Streaming Kalman filter: `update(y)`, `predict(u)`, `step(y, u)`; `x`, `P`.
 ///
 /// Starts from the prior (x0, P0) = x(0|-1), P(0|-1). After `update` at step t, `x` and `P`
 /// are x(t|t), P(t|t); after `predict` they are x(t+1|t), P(t+1|t). A `predict` without an
 /// `update` treats the step as missing. Equals `LinearGaussian.filter` on the same data.
+///
+/// Pickles (and copies) with its model; the copy continues the stream bit for bit.
 #[pyclass(module = "kfast._kfast", name = "KalmanFilter")]
 pub(super) struct PyKalmanFilter {
     inner: filter::KalmanFilter,
+    origin: Origin,
+    last: StepData,
 }
 
 #[pymethods]
@@ -80,14 +207,18 @@ impl PyKalmanFilter {
         form: &str,
     ) -> PyResult<Self> {
         let form: UpdateForm = parse_form(form)?;
-        let (model, x0, p0) = model_and_prior(py, model, x0, P0)?;
-        Ok(PyKalmanFilter { inner: filter::KalmanFilter::new(model, &x0, &p0, form)? })
+        let (core, x0, p0) = model_and_prior(py, model, x0, P0)?;
+        let inner = filter::KalmanFilter::new(core.clone(), &x0, &p0, form)?;
+        let origin = Origin { model: model.clone().unbind(), core, x0, p0 };
+        Ok(PyKalmanFilter { inner, origin, last: StepData::default() })
     }
 
     /// Measurement update with one observation y (length m; NaN = missing).
     #[pyo3(signature = (y, u=None))]
     fn update(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        with_step_data(py, Some(y), u, |y, u| self.inner.update(y.unwrap_or_default(), u))
+        with_step_data(py, Some(y), u, |y, u| {
+            update_recorded(&mut self.inner, &mut self.last, y.unwrap_or_default(), u)
+        })
     }
 
     /// Time update to the next step (u is needed when the model has B).
@@ -99,7 +230,27 @@ impl PyKalmanFilter {
     /// `update(y, u)` then `predict(u)`.
     #[pyo3(signature = (y, u=None))]
     fn step(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        with_step_data(py, Some(y), u, |y, u| self.inner.step(y.unwrap_or_default(), u))
+        with_step_data(py, Some(y), u, |y, u| {
+            update_recorded(&mut self.inner, &mut self.last, y.unwrap_or_default(), u)?;
+            self.inner.predict(u)
+        })
+    }
+
+    /// Pickling: the constructor's arguments and the state (see `__setstate__`).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyType>, Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+        let py = slf.py();
+        let this = slf.borrow();
+        let [model, x0, p0] = this.origin.args(py)?;
+        let args = PyTuple::new(py, [model, x0, p0, form_name(this.inner.form()).into_pyobject(py)?.into_any()])?;
+        Ok((slf.get_type(), args, filter_state(py, &this.inner, &this.last)?))
+    }
+
+    /// Unpickling: continue from the state `__reduce__` gave.
+    fn __setstate__(&mut self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
+        (self.inner, self.last) = resume_filter(py, &self.origin.core, self.inner.form(), state)?;
+        Ok(())
     }
 
     /// Current state estimate (a copy).
@@ -134,9 +285,13 @@ impl PyKalmanFilter {
 /// After `update` at step t, `x_lagged`, `P_lagged` are x(t-lag|t), P(t-lag|t) (None while
 /// t < lag), and `x_window`, `P_window` hold x(t-i|t) for i = 0..min(t, lag). Söderström
 /// (6.58)-(6.79), structured recursion: O(lag n^3) per step.
+///
+/// Pickles (and copies) with its model; the copy continues the stream bit for bit.
 #[pyclass(module = "kfast._kfast", name = "FixedLagSmoother")]
 pub(super) struct PyFixedLagSmoother {
     inner: FixedLagSmoother,
+    origin: Origin,
+    last: StepData,
 }
 
 #[pymethods]
@@ -154,14 +309,16 @@ impl PyFixedLagSmoother {
     ) -> PyResult<Self> {
         let lag = non_negative("lag", lag)?;
         let form = parse_form(form)?;
-        let (model, x0, p0) = model_and_prior(py, model, x0, P0)?;
-        Ok(PyFixedLagSmoother { inner: FixedLagSmoother::new(model, &x0, &p0, lag, form)? })
+        let (core, x0, p0) = model_and_prior(py, model, x0, P0)?;
+        let inner = FixedLagSmoother::new(core.clone(), &x0, &p0, lag, form)?;
+        let origin = Origin { model: model.clone().unbind(), core, x0, p0 };
+        Ok(PyFixedLagSmoother { inner, origin, last: StepData::default() })
     }
 
     /// Measurement update with one observation y (length m; NaN = missing).
     #[pyo3(signature = (y, u=None))]
     fn update(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        with_step_data(py, Some(y), u, |y, u| self.inner.update(y.unwrap_or_default(), u))
+        with_step_data(py, Some(y), u, |y, u| self.update_recorded(y.unwrap_or_default(), u))
     }
 
     /// Time update to the next step.
@@ -173,7 +330,51 @@ impl PyFixedLagSmoother {
     /// `update(y, u)` then `predict(u)`.
     #[pyo3(signature = (y, u=None))]
     fn step(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        with_step_data(py, Some(y), u, |y, u| self.inner.step(y.unwrap_or_default(), u))
+        with_step_data(py, Some(y), u, |y, u| {
+            self.update_recorded(y.unwrap_or_default(), u)?;
+            self.inner.predict(u)
+        })
+    }
+
+    /// Pickling: the constructor's arguments and the state (see `__setstate__`).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyType>, Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+        let py = slf.py();
+        let this = slf.borrow();
+        let [model, x0, p0] = this.origin.args(py)?;
+        let lag = this.inner.lag().into_pyobject(py)?.into_any();
+        let form = form_name(this.inner.filter().form()).into_pyobject(py)?.into_any();
+        let args = PyTuple::new(py, [model, x0, p0, lag, form])?;
+        let state = filter_state(py, this.inner.filter(), &this.last)?;
+        let n = this.inner.filter().model().n_states();
+        let window = this
+            .inner
+            .window_state()
+            .map(|(x, p, c)| {
+                PyTuple::new(py, [to_array(py, x, &[n])?, to_array(py, p, &[n, n])?, to_array(py, c, &[n, n])?])
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        state.set_item("window", window)?;
+        Ok((slf.get_type(), args, state))
+    }
+
+    /// Unpickling: continue from the state `__reduce__` gave (the filter's, and the window's
+    /// past states x(s|.), P(s|.) and cross covariances with the current state).
+    fn __setstate__(&mut self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
+        let (filter, last) = resume_filter(py, &self.origin.core, self.inner.filter().form(), state)?;
+        let mut arrays = Vec::new();
+        for entry in item(state, "window")?.try_iter()? {
+            let (x, p, c): (Bound<'_, PyAny>, Bound<'_, PyAny>, Bound<'_, PyAny>) = entry?.extract()?;
+            arrays.push([flat(py, "window", &x)?, flat(py, "window", &p)?, flat(py, "window", &c)?]);
+        }
+        let window = arrays
+            .iter()
+            .map(|[x, p, c]| Ok((data("window", x, 1)?, data("window", p, 2)?, data("window", c, 2)?)))
+            .collect::<PyResult<Vec<_>>>()?;
+        self.inner = FixedLagSmoother::resume(filter, self.inner.lag(), &window)?;
+        self.last = last;
+        Ok(())
     }
 
     /// The lag.
@@ -218,5 +419,15 @@ impl PyFixedLagSmoother {
         let n = self.inner.filter().model().n_states();
         let values: Vec<f64> = self.inner.window().flat_map(|(_, p)| p.iter().copied()).collect();
         to_array(py, &values, &[values.len() / (n * n), n, n])
+    }
+}
+
+impl PyFixedLagSmoother {
+    /// `inner.update(y, u)`, recording the data for pickling.
+    fn update_recorded(&mut self, y: &[f64], u: Option<&[f64]>) -> crate::Result<()> {
+        let before = self.inner.filter().loglik();
+        self.inner.update(y, u)?;
+        self.last.record(y, u, before);
+        Ok(())
     }
 }

@@ -142,4 +142,50 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub(crate) fn workspace(&self) -> &Workspace<Dyn> {
         &self.ws
     }
+
+    /// The covariance update form.
+    pub fn form(&self) -> UpdateForm {
+        self.form
+    }
+
+    /// `x̂(t|t−1), P(t|t−1)` of the current step t, also after its update (which leaves them
+    /// as they were). With `t`, the log-likelihood before the update and the update's data,
+    /// they determine everything the filter does next (see [`resume`](Self::resume)).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn prediction(&self) -> (&[f64], &[f64]) {
+        (self.ws.x_pred(), self.ws.p_pred())
+    }
+
+    /// The filter at step `t` before its update, from the [`prediction`](Self::prediction)
+    /// `x̂(t|t−1), P(t|t−1)` and the log-likelihood of the updates before t: it continues
+    /// bit for bit as the filter these came from (for pickling). P is not checked for
+    /// definiteness, which rounding may have touched in a long stream; it is symmetrized,
+    /// which leaves a filter's P(t|t−1) (exactly symmetric) as it is.
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn resume(
+        model: M,
+        x_pred: &[f64],
+        p_pred: &[f64],
+        form: UpdateForm,
+        t: usize,
+        loglik: f64,
+    ) -> Result<Self> {
+        let lg = model.borrow();
+        let (n, m, k, steps) = (lg.n_states(), lg.n_obs(), lg.n_inputs(), lg.steps());
+        for (arg, values, len) in [("x_pred", x_pred, n), ("P_pred", p_pred, n * n)] {
+            if values.len() != len {
+                return Err(Error::arg(arg, format!("expected {len} values (n = {n}), got {}", values.len())));
+            }
+            if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+                return Err(Error::arg(arg, format!("contains a non-finite value ({v})")));
+            }
+        }
+        if let Some(tm) = steps {
+            if t > tm {
+                return Err(Error::arg("t", format!("is {t}, past the {tm} steps of the model's per-step matrices")));
+            }
+        }
+        let ws = Workspace::new(Dyn { n, m }, k, x_pred, p_pred);
+        Ok(KalmanFilter { model, ws, form, t, updated: false, loglik })
+    }
 }
