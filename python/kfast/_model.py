@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional
+from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional, Sequence, Union, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64, frozen_copy
+from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
 if TYPE_CHECKING:
+    from kfast.estimation import EMResult
     from kfast.stationary import InnovationsForm, SteadyState
 
 __all__ = [
@@ -70,7 +73,7 @@ class FilterResult:
         stored = [k for k in _FILTER_FIELDS if getattr(self, k) is not None]
         return f"FilterResult(loglik={self.loglik:.6g}, fields={stored})"
 
-    def forecast(self, steps: int, u=None) -> "Forecast":
+    def forecast(self, steps: int, u: Optional[ArrayLike] = None) -> "Forecast":
         """Forecast the `steps` steps after the data, T..T+steps-1, from x(T|T-1), P(T|T-1)
         (u, shape (steps, k), holds the future inputs u(T), ...)."""
         if self.model is None or self.x_next is None or self.P_next is None:
@@ -175,12 +178,21 @@ class LinearGaussian:
     The arguments are copied; the model's matrices are read-only attributes.
     """
 
-    def __init__(self, F, H, Q, R, B=None, D=None, N=None):
+    def __init__(
+        self,
+        F: ArrayLike,
+        H: ArrayLike,
+        Q: ArrayLike,
+        R: ArrayLike,
+        B: Optional[ArrayLike] = None,
+        D: Optional[ArrayLike] = None,
+        N: Optional[ArrayLike] = None,
+    ) -> None:
         given = {"F": F, "H": H, "Q": Q, "R": R, "B": B, "D": D, "N": N}
         for name in ("F", "H", "Q", "R"):
             if given[name] is None:
                 raise _kfast.KfastError(f"{name}: required (got None)")
-        arrays = {k: (None if v is None else frozen_copy(k, v, scalar_shape=(1, 1))) for k, v in given.items()}
+        arrays: dict = {k: (None if v is None else frozen_copy(k, v, scalar_shape=(1, 1))) for k, v in given.items()}
         self._core = _kfast.LinearGaussian(**arrays)
         self.F: np.ndarray = arrays["F"]
         self.H: np.ndarray = arrays["H"]
@@ -204,7 +216,17 @@ class LinearGaussian:
         self._core = _kfast.LinearGaussian(**arrays)
 
     @classmethod
-    def from_continuous(cls, A, Qc, H, R, dt=None, B=None, D=None, times=None) -> "LinearGaussian":
+    def from_continuous(
+        cls,
+        A: ArrayLike,
+        Qc: ArrayLike,
+        H: ArrayLike,
+        R: ArrayLike,
+        dt: Optional[ArrayLike] = None,
+        B: Optional[ArrayLike] = None,
+        D: Optional[ArrayLike] = None,
+        times: Optional[ArrayLike] = None,
+    ) -> "LinearGaussian":
         """The exact discrete model of dx = A x dt + B u dt + dbeta (E[dbeta dbeta'] = Qc dt, a
         continuous intensity), sampled as y[t] = H x[t] + D u[t] + v[t], cov v = R (a
         discrete covariance: white noise of intensity Rc averaged over h has R = Rc / h).
@@ -248,14 +270,14 @@ class LinearGaussian:
 
     def filter(
         self,
-        y,
-        x0,
-        P0=None,
-        u=None,
-        form: str = "joseph",
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: Optional[ArrayLike] = None,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
         steady_state: bool = False,
-        converge_tol=None,
-        outputs=None,
+        converge_tol: Optional[float] = None,
+        outputs: FilterOutputs = None,
     ) -> FilterResult:
         """Kalman filter over y, shape (T, m) (or (T,) when m = 1); NaN marks a missing value.
 
@@ -288,16 +310,24 @@ class LinearGaussian:
         elif P0 is None:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
-        outputs = _output_names(outputs)
-        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=outputs)
+        names = _output_names(outputs)
+        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=names)
         return FilterResult(**out, model=self)
 
-    def loglik(self, y, x0, P0, u=None, form: str = "joseph", converge_tol=None) -> float:
+    def loglik(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+        converge_tol: Optional[float] = None,
+    ) -> float:
         """The log-likelihood sum_t log N(y(t); H x(t|t-1) + D u(t), S(t)) alone (Söderström
         (6.142)), computed without storing any per-step covariance. Same arguments as filter."""
         return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=_tolerance(converge_tol))
 
-    def steady_state(self, method: str = "doubling") -> "SteadyState":
+    def steady_state(self, method: DareMethod = "doubling") -> "SteadyState":
         """The stationary filter: P_pred (the stabilizing DARE solution, with SciPy's
         solve_discrete_are(F', H', Q, R, s=N)), P_filt, K, K_pred, S, the closed-loop
         eigenvalues of F - K_pred H and the residual (Söderström (6.91)). Raises
@@ -320,14 +350,14 @@ class LinearGaussian:
 
         return stationary_cov(self)
 
-    def autocovariance(self, lags) -> np.ndarray:
+    def autocovariance(self, lags: ArrayLike) -> np.ndarray:
         """r_y(tau) = E[y(t+tau) y(t)'] of the stationary output for each lag, shape
         (len(lags), m, m); r_y(-tau) = r_y(tau)'. Inputs are ignored (zero mean)."""
         from kfast.stationary import autocovariance
 
         return autocovariance(self, lags)
 
-    def spectral_density(self, omega, h: float = 1.0) -> np.ndarray:
+    def spectral_density(self, omega: ArrayLike, h: float = 1.0) -> np.ndarray:
         """Output spectral density phi_y(e^{i omega h}), shape (len(omega), m, m), complex
         Hermitian, with Söderström's normalization (no 1/2pi): r_y(k) = (1/2pi) times the
         integral of phi_y e^{i omega k h} over |omega| <= pi/h. h is the sampling interval."""
@@ -335,7 +365,15 @@ class LinearGaussian:
 
         return spectral_density(self, omega, h=h)
 
-    def smooth(self, y, x0, P0, u=None, form: str = "joseph", outputs=None) -> SmootherResult:
+    def smooth(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+        outputs: SmoothOutputs = None,
+    ) -> SmootherResult:
         """Rauch-Tung-Striebel fixed-interval smoother: x(t|T-1), P(t|T-1) and the lag-one
         covariances Cov(x[t], x[t-1] | all data), with the filter's results. Same arguments
         and missing-data rules as ``filter``. outputs: the names of the fields to store, among
@@ -352,7 +390,15 @@ class LinearGaussian:
         filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
 
-    def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:
+    def smooth_fixed_lag(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        lag: int,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+    ) -> FixedLagResult:
         """Fixed-lag smoother: the estimate of x[s] from y up to s + lag, for every s (near the
         end, from all the data). lag = 0 is the filter, lag >= T-1 the RTS smoother.
 
@@ -363,7 +409,15 @@ class LinearGaussian:
         out = self._core.smooth_fixed_lag(y, x0, P0, _index("lag", lag), u=u, form=_form(form))
         return FixedLagResult(lag=int(lag), **out)
 
-    def smooth_fixed_point(self, y, x0, P0, t_point: int, u=None, form: str = "joseph") -> FixedPointResult:
+    def smooth_fixed_point(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        t_point: int,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+    ) -> FixedPointResult:
         """Fixed-point smoother: the estimate of x[t_point] from y up to each t >= t_point, with
         its covariance (Söderström (6.45)-(6.54)). Row 0 is the filtered x(t_point|t_point);
         the last row equals the RTS smoother at t_point."""
@@ -372,7 +426,7 @@ class LinearGaussian:
         out = self._core.smooth_fixed_point(y, x0, P0, t_point, u=u, form=_form(form))
         return FixedPointResult(t_point=t_point, **out)
 
-    def forecast(self, x, P, steps: int, u=None) -> Forecast:
+    def forecast(self, x: ArrayLike, P: ArrayLike, steps: int, u: Optional[ArrayLike] = None) -> Forecast:
         """Forecast `steps` steps from a one-step prediction (x, P) = x(t|t-1), P(t|t-1), such
         as ``FilterResult.x_next`` or ``KalmanFilter.x`` after ``predict()``. Row j is the
         forecast of step t+j (row 0 is (x, P) itself); u, shape (steps, k), holds u(t+j).
@@ -387,7 +441,14 @@ class LinearGaussian:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
         return Forecast(**self._core.forecast(x, P, steps, u=u))
 
-    def simulate(self, T: int, x0, P0, u=None, seed=None) -> Simulation:
+    def simulate(
+        self,
+        T: int,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        seed: Union[int, np.random.Generator, None] = None,
+    ) -> Simulation:
         """Draw a sample path of T steps: x[0] ~ N(x0, P0), (w[t], v[t]) ~ N(0, [[Q, N],
         [N', R]]) jointly (so N is honoured), y[t] = H x[t] + D u[t] + v[t],
         x[t+1] = F x[t] + B u[t] + w[t]. ``seed`` (an int or a numpy Generator) makes the
@@ -408,7 +469,17 @@ class LinearGaussian:
         x, y = self._core.propagate(x_init, w, v, u=u)
         return Simulation(x, y)
 
-    def em(self, y, x0, P0, n_iter: int = 10, fit=("F", "H", "Q", "R", "x0", "P0"), u=None, tol=None, progress=False):
+    def em(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        n_iter: int = 10,
+        fit: Sequence[EMParameter] = ("F", "H", "Q", "R", "x0", "P0"),
+        u: Optional[ArrayLike] = None,
+        tol: Optional[float] = None,
+        progress: bool = False,
+    ) -> "EMResult":
         """Expectation-maximization (Shumway & Stoffer) of the parameters named in ``fit``
         (any of "F", "H", "Q", "R", "x0", "P0"), starting from this model and (x0, P0).
 
@@ -433,14 +504,15 @@ class LinearGaussian:
         bottom = np.concatenate([np.swapaxes(N, -1, -2), R], axis=-1)
         return np.concatenate([top, bottom], axis=-2)
 
-    def _data(self, y, x0, P0, u):
-        y = _column_if_1d(as_float64("y", y), self.n_obs)
-        x0, P0 = self._prior(x0, P0)
-        if u is not None:
-            u = _column_if_1d(as_float64("u", u), self.n_inputs)
-        return y, x0, P0, u
+    def _data(
+        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray]]:
+        y_arr = _column_if_1d(as_float64("y", y), self.n_obs)
+        x0_arr, P0_arr = self._prior(x0, P0)
+        u_arr = None if u is None else _column_if_1d(as_float64("u", u), self.n_inputs)
+        return y_arr, x0_arr, P0_arr, u_arr
 
-    def _prior(self, x, P, names=("x0", "P0")):
+    def _prior(self, x: ArrayLike, P: ArrayLike, names: tuple[str, str] = ("x0", "P0")) -> tuple[np.ndarray, np.ndarray]:
         """A mean and covariance as float64; scalars (size 1) for a scalar state."""
         x, P = as_float64(names[0], x), as_float64(names[1], P)
         if self.n_states == 1:
@@ -496,7 +568,7 @@ def _index(name: str, value) -> int:
     return int(value)
 
 
-def _form(form: str) -> str:
+def _form(form: str) -> Form:
     if form not in _FORMS:
         raise _kfast.KfastError(f"form: expected one of {_FORMS}, got {form!r}")
-    return form
+    return cast(Form, form)

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
 from kfast._model import LinearGaussian, _form
+from kfast._typing import Form
 
 __all__ = ["filter_batch", "BatchResult"]
 
@@ -36,13 +38,13 @@ class BatchResult:
 
 def filter_batch(
     model: LinearGaussian,
-    Y,
-    x0,
-    P0,
-    u=None,
+    Y: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
+    u: Optional[ArrayLike] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
-    form: str = "joseph",
+    form: Form = "joseph",
 ) -> BatchResult:
     """Kalman-filter every series of Y, shape (B, T, m) (NaN = missing, per component), in
     parallel over series with one release of the GIL. x0 is (n,) shared or (B, n); P0 (n, n)

@@ -12,10 +12,12 @@ from dataclasses import dataclass
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast._arrays import as_float64
 from kfast._kfast import KfastError
 from kfast._model import LinearGaussian
+from kfast._typing import EMParameter
 
 __all__ = ["fit", "FitResult", "em", "EMResult"]
 
@@ -64,9 +66,9 @@ def _build(build: Callable, theta: np.ndarray, where: str):
 
 def fit(
     build: Callable[[np.ndarray], tuple],
-    theta0,
-    y,
-    u=None,
+    theta0: ArrayLike,
+    y: ArrayLike,
+    u: Optional[ArrayLike] = None,
     *,
     method: str = "L-BFGS-B",
     bounds: Optional[Sequence] = None,
@@ -167,17 +169,17 @@ class EMResult:
         return f"EMResult(n_iter={self.n_iter}, loglik={self.loglik[-1]:.6g}, converged={self.converged})"
 
 
-EM_PARAMETERS = ("F", "H", "Q", "R", "x0", "P0")
+EM_PARAMETERS: tuple[EMParameter, ...] = ("F", "H", "Q", "R", "x0", "P0")
 
 
 def em(
     model: LinearGaussian,
-    y,
-    x0,
-    P0,
+    y: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
     n_iter: int = 10,
-    fit: Sequence[str] = EM_PARAMETERS,
-    u=None,
+    fit: Sequence[EMParameter] = EM_PARAMETERS,
+    u: Optional[ArrayLike] = None,
     tol: Optional[float] = None,
     progress: bool = False,
 ) -> EMResult:
@@ -220,7 +222,9 @@ def em(
         history.append(final.loglik(y, x0, P0, u=u))
     if progress:
         print(file=sys.stderr)
-    return EMResult(model=final, x0=x0, P0=P0, loglik=np.array(history), n_iter=iterations, converged=converged)
+    return EMResult(
+        model=final, x0=np.asarray(x0), P0=np.asarray(P0), loglik=np.array(history), n_iter=iterations, converged=converged
+    )
 
 
 def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
@@ -20,7 +21,7 @@ from kfast.solvers import _matrix, care
 __all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals", "stationary_cov_continuous"]
 
 
-def expm(a) -> np.ndarray:
+def expm(a: ArrayLike) -> np.ndarray:
     """e^a by scaling and squaring with the degree-13 Padé approximant (Higham 2005)."""
     return _kfast.expm(_matrix("a", a))
 
@@ -36,7 +37,7 @@ class Discretized(NamedTuple):
     """The integral of e^{As} ds times B (zero-order hold), or None without B."""
 
 
-def discretize(A, Qc, dt, B=None) -> Discretized:
+def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike] = None) -> Discretized:
     """Exact discretization (Van Loan, inverse-free form) of dx = A x dt + B u dt + dbeta,
     E[dbeta dbeta'] = Qc dt, over an interval dt > 0. A scalar dt gives (n, n) matrices; an
     array of T intervals gives per-step stacks (T, n, n), computed in Rust."""
@@ -49,7 +50,7 @@ def discretize(A, Qc, dt, B=None) -> Discretized:
     return Discretized(out["F"], out["Qd"], out.get("Bd"))
 
 
-def intervals(dt=None, times=None) -> np.ndarray:
+def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None) -> np.ndarray:
     """The per-step intervals of an irregularly sampled series: ``dt`` (one per step: dt[t] is
     the interval from step t to t+1, the last one only moves x(T|T-1) past the data), or
     ``times`` (T strictly increasing sample times; the last step reuses the last interval)."""
@@ -74,7 +75,7 @@ def intervals(dt=None, times=None) -> np.ndarray:
     return d
 
 
-def stationary_cov_continuous(A, Qc) -> np.ndarray:
+def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     """The stationary covariance Pi of dx = A x dt + dbeta (intensity Qc): A Pi + Pi A' + Qc
     = 0 (Söderström (4.90)-(4.92)). Raises ``kfast.KfastError`` unless A is Hurwitz: the
     Lyapunov equation may still have a (negative) solution, which is not a covariance
@@ -106,7 +107,7 @@ class KalmanBucy:
         return f"KalmanBucy(n={len(self.P)})"
 
 
-def kalman_bucy(A, Qc, H, Rc) -> KalmanBucy:
+def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> KalmanBucy:
     """Stationary Kalman-Bucy gain via the CARE (solve_continuous_are(A', H', Qc, Rc))."""
     A, H = _matrix("A", A), _matrix("H", H)
     sol = care(A.T, H.T, Qc, Rc)
