@@ -24,6 +24,9 @@ USER_CODE = textwrap.dedent(
     r2 = m.filter([[0.0, 1.0]], [0.0, 0.0], [[1.0, 0.0], [0.0, 1.0]], form="standard", outputs=("x_filt", "S"))
     s2 = m.smooth(np.zeros((3, 2)), np.zeros(2), np.eye(2), form="joseph", outputs="x_smooth")
     kf2 = kfast.KalmanFilter(m, [0.0, 0.0], np.eye(2), form="standard")
+    kf2.update([0.0, 1.0], H=np.eye(2), R=[[2.0, 0.0], [0.0, 1.0]])
+    kf2.predict()
+    kf2.step([0.0, 1.0], R=np.eye(2))
     X: np.ndarray = kfast.solve_discrete_are(np.eye(2), np.eye(2), np.eye(2), np.eye(2), method="newton")
     ss = m.steady_state(method="eigen")
     b = kfast.filter_batch(m, np.zeros((4, 3, 2)), np.zeros(2), np.eye(2), form="standard")
@@ -42,6 +45,7 @@ WRONG_CODE = {
     "output_name": ('m.filter(np.zeros((3, 2)), np.zeros(2), np.eye(2), outputs=("x_flit",))', "x_flit"),
     "em_parameter": ('m.em(np.zeros((3, 2)), np.zeros(2), np.eye(2), fit=("F", "G"))', "Literal['G']"),
     "streaming_model": ("kfast.KalmanFilter(np.eye(2), np.zeros(2), np.eye(2))", "KalmanFilter"),
+    "positional_R": ("kfast.KalmanFilter(m, np.zeros(2), np.eye(2)).update([0.0, 1.0], None, np.eye(2))", "update"),
 }
 
 

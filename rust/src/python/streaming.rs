@@ -86,38 +86,82 @@ fn form_name(form: UpdateForm) -> &'static str {
     }
 }
 
-/// The data of the update made at the current step (in buffers reused from step to step), so
+/// An optional vector kept in a buffer reused from step to step.
+#[derive(Default)]
+struct Kept {
+    values: Vec<f64>,
+    given: bool,
+}
+
+impl Kept {
+    fn set(&mut self, values: Option<&[f64]>) {
+        self.values.clear();
+        self.values.extend_from_slice(values.unwrap_or_default());
+        self.given = values.is_some();
+    }
+
+    fn get(&self) -> Option<&[f64]> {
+        self.given.then_some(self.values.as_slice())
+    }
+}
+
+/// The data of the update made at the current step (y, u and the step's own H and R), so
 /// that unpickling can replay it: recomputing the update's by-products that the time update
 /// reads gives the same bits and needs no export of the filter's internals.
 #[derive(Default)]
 struct StepData {
-    y: Vec<f64>,
-    u: Vec<f64>,
-    has_u: bool,
+    y: Kept,
+    u: Kept,
+    h: Kept,
+    r: Kept,
     loglik_before: f64,
 }
 
-impl StepData {
-    fn record(&mut self, y: &[f64], u: Option<&[f64]>, loglik_before: f64) {
-        self.y.clear();
-        self.y.extend_from_slice(y);
-        self.u.clear();
-        self.u.extend_from_slice(u.unwrap_or_default());
-        self.has_u = u.is_some();
-        self.loglik_before = loglik_before;
-    }
-
-    fn u(&self) -> Option<&[f64]> {
-        self.has_u.then_some(self.u.as_slice())
-    }
+/// `kf.update_with(y, u, h, r)`, recording the data for pickling.
+fn update_recorded(
+    kf: &mut KalmanFilter,
+    last: &mut StepData,
+    y: &[f64],
+    u: Option<&[f64]>,
+    h: Option<&[f64]>,
+    r: Option<&[f64]>,
+) -> crate::Result<()> {
+    let before = kf.loglik();
+    kf.update_with(y, u, h, r)?;
+    last.y.set(Some(y));
+    last.u.set(u);
+    last.h.set(h);
+    last.r.set(r);
+    last.loglik_before = before;
+    Ok(())
 }
 
-/// `kf.update(y, u)`, recording the data for pickling.
-fn update_recorded(kf: &mut KalmanFilter, last: &mut StepData, y: &[f64], u: Option<&[f64]>) -> crate::Result<()> {
-    let before = kf.loglik();
-    kf.update(y, u)?;
-    last.record(y, u, before);
-    Ok(())
+/// `H` (m × n) or `R` (m × m) given for one update at step t: a float64 array of that shape
+/// (a scalar for a 1 × 1 matrix).
+fn step_matrix<'py>(
+    py: Python<'py>,
+    arg: &str,
+    value: Option<&Bound<'py, PyAny>>,
+    shape: [usize; 2],
+    t: usize,
+) -> PyResult<Option<PyReadonlyArrayDyn<'py, f64>>> {
+    let Some(value) = value else { return Ok(None) };
+    let arr = as_float64(py, arg, value)?;
+    if arr.shape() != shape && !(arr.ndim() == 0 && shape == [1, 1]) {
+        let got: Vec<String> = arr.shape().iter().map(|d| d.to_string()).collect();
+        return Err(KfastError::new_err(format!(
+            "{arg} at step {t}: expected shape ({}, {}), got ({})",
+            shape[0],
+            shape[1],
+            got.join(", ")
+        )));
+    }
+    Ok(Some(arr.readonly()))
+}
+
+/// The data of a [`step_matrix`].
+fn matrix_data<'a>(arg: &str, arr: &'a Option<PyReadonlyArrayDyn<'_, f64>>) -> PyResult<Option<&'a [f64]>> {
+    arr.as_ref().map(|a| a.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: not contiguous")))).transpose()
 }
 
 /// The filter's state for pickling: the step t, the prediction x(t|t-1), P(t|t-1), the
@@ -131,9 +175,14 @@ fn filter_state<'py>(py: Python<'py>, kf: &KalmanFilter, last: &StepData) -> PyR
     state.set_item("P_pred", to_array(py, p_pred, &[n, n])?)?;
     if kf.is_updated() {
         state.set_item("loglik", last.loglik_before)?;
+        let m = kf.model().n_obs();
         let update = PyDict::new(py);
-        update.set_item("y", to_array(py, &last.y, &[last.y.len()])?)?;
-        update.set_item("u", last.u().map(|u| to_array(py, u, &[u.len()])).transpose()?)?;
+        update.set_item("y", to_array(py, &last.y.values, &[m])?)?;
+        let shapes =
+            [("u", &last.u, vec![last.u.values.len()]), ("H", &last.h, vec![m, n]), ("R", &last.r, vec![m, m])];
+        for (key, kept, shape) in shapes {
+            update.set_item(key, kept.get().map(|v| to_array(py, v, &shape)).transpose()?)?;
+        }
         state.set_item("update", update)?;
     } else {
         state.set_item("loglik", kf.loglik())?;
@@ -171,10 +220,16 @@ fn resume_filter(
     let update = item(state, "update")?;
     if !update.is_none() {
         let update = update.cast_into::<PyDict>()?;
-        let u = item(&update, "u")?;
-        let u = (!u.is_none()).then_some(u);
-        with_step_data(py, Some(&item(&update, "y")?), u.as_ref(), |y, u| {
-            update_recorded(&mut kf, &mut last, y.unwrap_or_default(), u)
+        let given = |key: &str| -> PyResult<Option<Bound<'_, PyAny>>> {
+            let value = item(&update, key)?;
+            Ok((!value.is_none()).then_some(value))
+        };
+        let (m, n) = (kf.model().n_obs(), kf.model().n_states());
+        let h = step_matrix(py, "H", given("H")?.as_ref(), [m, n], t)?;
+        let r = step_matrix(py, "R", given("R")?.as_ref(), [m, m], t)?;
+        let (h, r) = (matrix_data("H", &h)?, matrix_data("R", &r)?);
+        with_step_data(py, Some(&item(&update, "y")?), given("u")?.as_ref(), |y, u| {
+            update_recorded(&mut kf, &mut last, y.unwrap_or_default(), u, h, r)
         })?;
     }
     Ok((kf, last))
@@ -255,18 +310,46 @@ impl PyKalmanFilter {
     ///     The observation (a scalar when m = 1); NaN marks a missing component.
     /// u : array_like, shape (k,), optional
     ///     The input u(t); required when the model has D.
+    /// H : array_like, shape (m, n), optional
+    ///     The observation matrix for this update only, in place of the model's (keyword only;
+    ///     as filterpy's ``update(z, R=..., H=...)``).
+    /// R : array_like, shape (m, m), optional
+    ///     The measurement noise covariance for this update only (keyword only): symmetric
+    ///     positive semidefinite, and with the model's N so must [[Q, N], [N', R]] be.
     ///
     /// Raises
     /// ------
     /// KfastError
-    ///     For a wrong shape, inf, a missing input, a second update without a predict in between,
-    ///     or a step past the end of per-step matrices.
+    ///     For a wrong shape, inf, a missing input, an invalid H or R (the message names it and
+    ///     the step), a second update without a predict in between, or a step past the end of
+    ///     per-step matrices. The filter is then unchanged.
     /// InnovationCovarianceError
     ///     When S = H P H' + R of the observed components is not positive definite.
-    #[pyo3(signature = (y, u=None))]
-    fn update(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+    ///
+    /// Examples
+    /// --------
+    /// A reading whose noise variance is known when it arrives:
+    ///
+    /// >>> model = kfast.LinearGaussian(F=1.0, H=1.0, Q=0.1, R=1.0)
+    /// >>> kf = kfast.KalmanFilter(model, x0=0.0, P0=1.0)
+    /// >>> kf.update(2.0, R=0.25)  # K = 1 / (1 + 0.25) = 0.8
+    /// >>> print(kf.x.round(6), kf.P.round(6))
+    /// [1.6] [[0.2]]
+    #[pyo3(signature = (y, u=None, *, H=None, R=None))]
+    #[allow(non_snake_case)]
+    fn update(
+        &mut self,
+        py: Python<'_>,
+        y: &Bound<'_, PyAny>,
+        u: Option<&Bound<'_, PyAny>>,
+        H: Option<&Bound<'_, PyAny>>,
+        R: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let (m, n, t) = (self.inner.model().n_obs(), self.inner.model().n_states(), self.inner.t());
+        let (h, r) = (step_matrix(py, "H", H, [m, n], t)?, step_matrix(py, "R", R, [m, m], t)?);
+        let (h, r) = (matrix_data("H", &h)?, matrix_data("R", &r)?);
         with_step_data(py, Some(y), u, |y, u| {
-            update_recorded(&mut self.inner, &mut self.last, y.unwrap_or_default(), u)
+            update_recorded(&mut self.inner, &mut self.last, y.unwrap_or_default(), u, h, r)
         })
     }
 
@@ -286,13 +369,19 @@ impl PyKalmanFilter {
         with_step_data(py, None, u, |_, u| self.inner.predict(u))
     }
 
-    /// ``update(y, u)`` then ``predict(u)``: one whole step.
-    #[pyo3(signature = (y, u=None))]
-    fn step(&mut self, py: Python<'_>, y: &Bound<'_, PyAny>, u: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        with_step_data(py, Some(y), u, |y, u| {
-            update_recorded(&mut self.inner, &mut self.last, y.unwrap_or_default(), u)?;
-            self.inner.predict(u)
-        })
+    /// ``update(y, u, H=H, R=R)`` then ``predict(u)``: one whole step.
+    #[pyo3(signature = (y, u=None, *, H=None, R=None))]
+    #[allow(non_snake_case)]
+    fn step(
+        &mut self,
+        py: Python<'_>,
+        y: &Bound<'_, PyAny>,
+        u: Option<&Bound<'_, PyAny>>,
+        H: Option<&Bound<'_, PyAny>>,
+        R: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.update(py, y, u, H, R)?;
+        with_step_data(py, None, u, |_, u| self.inner.predict(u))
     }
 
     /// Pickling: the constructor's arguments and the state (see `__setstate__`).
@@ -539,7 +628,9 @@ impl PyFixedLagSmoother {
     fn update_recorded(&mut self, y: &[f64], u: Option<&[f64]>) -> crate::Result<()> {
         let before = self.inner.filter().loglik();
         self.inner.update(y, u)?;
-        self.last.record(y, u, before);
+        self.last.y.set(Some(y));
+        self.last.u.set(u);
+        self.last.loglik_before = before;
         Ok(())
     }
 }
