@@ -11,6 +11,9 @@ from kfast._typing import DareMethod, Form
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the
 # package converts array-likes first); the streaming objects take array-likes themselves.
 
+__version__: str
+"""Cargo.toml's version, compiled in."""
+
 class KfastError(ValueError):
     """Invalid input to kfast (a ValueError): the message names the argument, step and problem."""
 
