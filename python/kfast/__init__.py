@@ -19,6 +19,7 @@ from kfast._kfast import (
     KalmanFilter,
     KfastError,
     NoStabilizingSolutionError,
+    __version__,
 )
 from kfast._model import (
     FilterResult,
@@ -42,8 +43,6 @@ from kfast.solvers import (
 )
 
 from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
-
-__version__ = "0.1.0"
 
 __all__ = [
     "models",

@@ -1,9 +1,18 @@
 """Type stubs for the compiled module kfast._kfast (rust/src/python)."""
 
-from typing import Any, Optional
+from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from kfast._model import LinearGaussian as _Model
+from kfast._typing import DareMethod, Form
+
+# The functions and the compiled model's methods take C-contiguous float64 arrays (the
+# package converts array-likes first); the streaming objects take array-likes themselves.
+
+__version__: str
+"""Cargo.toml's version, compiled in."""
 
 class KfastError(ValueError):
     """Invalid input to kfast (a ValueError): the message names the argument, step and problem."""
@@ -24,7 +33,7 @@ def dare(
     r: NDArray[np.float64],
     e: Optional[NDArray[np.float64]] = None,
     s: Optional[NDArray[np.float64]] = None,
-    method: str = "doubling",
+    method: DareMethod = "doubling",
 ) -> dict[str, Any]: ...
 def care(
     a: NDArray[np.float64],
@@ -44,7 +53,7 @@ def filter_batch(
     u: Optional[NDArray[np.float64]] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
-    form: str = "joseph",
+    form: Form = "joseph",
 ) -> dict[str, Any]: ...
 def discretize(
     A: NDArray[np.float64], Qc: NDArray[np.float64], dt: NDArray[np.float64], B: Optional[NDArray[np.float64]] = None
@@ -77,9 +86,9 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: str = "joseph",
+        form: Form = "joseph",
         converge_tol: Optional[float] = None,
-        outputs: Optional[list[str]] = None,
+        outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
     def loglik(
         self,
@@ -87,7 +96,7 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: str = "joseph",
+        form: Form = "joseph",
         converge_tol: Optional[float] = None,
     ) -> float: ...
 
@@ -97,8 +106,8 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: str = "joseph",
-        outputs: Optional[list[str]] = None,
+        form: Form = "joseph",
+        outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
     def smooth_fixed_lag(
         self,
@@ -107,7 +116,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         lag: int,
         u: Optional[NDArray[np.float64]] = None,
-        form: str = "joseph",
+        form: Form = "joseph",
     ) -> dict[str, NDArray[np.float64]]: ...
     def smooth_fixed_point(
         self,
@@ -116,7 +125,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         t_point: int,
         u: Optional[NDArray[np.float64]] = None,
-        form: str = "joseph",
+        form: Form = "joseph",
     ) -> dict[str, NDArray[np.float64]]: ...
     def forecast(
         self,
@@ -140,10 +149,14 @@ class KalmanFilter:
     P(t+1|t). A predict without an update treats the step as missing.
     """
 
-    def __init__(self, model: Any, x0: ArrayLike, P0: ArrayLike, form: str = "joseph") -> None: ...
-    def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    def __init__(self, model: Union[_Model, LinearGaussian], x0: ArrayLike, P0: ArrayLike, form: Form = "joseph") -> None: ...
+    def update(
+        self, y: ArrayLike, u: Optional[ArrayLike] = None, *, H: Optional[ArrayLike] = None, R: Optional[ArrayLike] = None
+    ) -> None: ...
     def predict(self, u: Optional[ArrayLike] = None) -> None: ...
-    def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
+    def step(
+        self, y: ArrayLike, u: Optional[ArrayLike] = None, *, H: Optional[ArrayLike] = None, R: Optional[ArrayLike] = None
+    ) -> None: ...
     @property
     def x(self) -> NDArray[np.float64]: ...
     @property
@@ -160,7 +173,9 @@ class FixedLagSmoother:
     t < lag); x_window, P_window hold x(t-i|t) for i = 0..min(t, lag).
     """
 
-    def __init__(self, model: Any, x0: ArrayLike, P0: ArrayLike, lag: int, form: str = "joseph") -> None: ...
+    def __init__(
+        self, model: Union[_Model, LinearGaussian], x0: ArrayLike, P0: ArrayLike, lag: int, form: Form = "joseph"
+    ) -> None: ...
     def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...
     def predict(self, u: Optional[ArrayLike] = None) -> None: ...
     def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None: ...

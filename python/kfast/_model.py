@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional
+from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional, Sequence, Union, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64, frozen_copy
+from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
 if TYPE_CHECKING:
+    from kfast.estimation import EMResult
     from kfast.stationary import InnovationsForm, SteadyState
 
 __all__ = [
@@ -24,6 +27,7 @@ __all__ = [
 ]
 
 _FORMS = ("joseph", "standard")
+_MATRICES = ("F", "H", "Q", "R", "B", "D", "N")
 
 
 @dataclass(frozen=True, repr=False)
@@ -69,9 +73,33 @@ class FilterResult:
         stored = [k for k in _FILTER_FIELDS if getattr(self, k) is not None]
         return f"FilterResult(loglik={self.loglik:.6g}, fields={stored})"
 
-    def forecast(self, steps: int, u=None) -> "Forecast":
-        """Forecast the `steps` steps after the data, T..T+steps-1, from x(T|T-1), P(T|T-1)
-        (u, shape (steps, k), holds the future inputs u(T), ...)."""
+    def forecast(self, steps: int, u: Optional[ArrayLike] = None) -> "Forecast":
+        """Forecast the ``steps`` steps after the data, T..T+steps-1, from x(T|T-1), P(T|T-1).
+
+        Parameters
+        ----------
+        steps : int
+            Number of steps to forecast.
+        u : array_like, shape (steps, k), optional
+            The future inputs u(T), ..., u(T+steps-1); required when the model has B or D.
+
+        Returns
+        -------
+        Forecast
+            See :meth:`LinearGaussian.forecast`.
+
+        Raises
+        ------
+        KfastError
+            When this result has no model or no x_next, P_next (left out with ``outputs=``).
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> fc = model.filter([0.3, -0.1, 0.7], x0=0.0, P0=1.0).forecast(2)
+        >>> print(fc.x[:, 0].round(4), fc.P[:, 0, 0].round(4))
+        [0.2832 0.2266] [1.   1.32]
+        """
         if self.model is None or self.x_next is None or self.P_next is None:
             raise _kfast.KfastError("forecast: this FilterResult has no model or no x_next, P_next")
         return self.model.forecast(self.x_next, self.P_next, steps, u=u)
@@ -159,7 +187,9 @@ class FixedPointResult:
 
 
 class LinearGaussian:
-    """Linear Gaussian state-space model, validated once::
+    """Linear Gaussian state-space model, validated once.
+
+    ::
 
         x[t+1] = F x[t] + B u[t] + w[t]      w ~ N(0, Q)   (Q: discrete-time covariance)
         y[t]   = H x[t] + D u[t] + v[t]      v ~ N(0, R),  E[w[t] v[t]'] = N
@@ -167,19 +197,71 @@ class LinearGaussian:
     Each matrix is constant, e.g. F of shape (n, n), or given per step with a leading axis T,
     e.g. (T, n, n). Per-step matrices are indexed by the step they leave: F[t], B[t], Q[t],
     N[t] take x[t] to x[t+1]; H[t], D[t], R[t] produce y[t]. A scalar is a 1 x 1 matrix.
+    The arguments are copied; the model's matrices are read-only attributes. Models pickle
+    and copy (for multiprocessing and Dask); unpickling validates the matrices again.
 
-    Validation: all entries finite; Q and R symmetric positive semidefinite; the joint
-    covariance [[Q, N], [N', R]] positive semidefinite; shapes consistent. A failure raises
-    ``kfast.KfastError`` (a ValueError) naming the argument, the step and the problem.
-    The arguments are copied; the model's matrices are read-only attributes.
+    Parameters
+    ----------
+    F : array_like, shape (n, n) or (T, n, n)
+        State transition.
+    H : array_like, shape (m, n) or (T, m, n)
+        Observation matrix.
+    Q : array_like, shape (n, n) or (T, n, n)
+        Covariance of the process noise w[t].
+    R : array_like, shape (m, m) or (T, m, m)
+        Covariance of the measurement noise v[t].
+    B : array_like, shape (n, k) or (T, n, k), optional
+        Input matrix of the state; data then need inputs u of shape (T, k).
+    D : array_like, shape (m, k) or (T, m, k), optional
+        Input matrix of the output.
+    N : array_like, shape (n, m) or (T, n, m), optional
+        Cross covariance E[w[t] v[t]'] of the noises at the same step (zero when omitted).
+
+    Raises
+    ------
+    KfastError
+        A ValueError naming the argument, the step and the problem, unless all entries are
+        finite, Q and R are symmetric positive semidefinite, the joint covariance
+        [[Q, N], [N', R]] is positive semidefinite and the shapes agree (per-step stacks all
+        with the same T).
+
+    Notes
+    -----
+    The notation is that of Söderström, *Discrete-time Stochastic Systems* (2002), ch. 6, with
+    his G, R1, R2, R12 written B, Q, R, N. The prior (x0, P0) that the methods take is
+    x(0|-1), P(0|-1): the first operation on data is the measurement update with y[0].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kfast
+    >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)  # Söderström ex. 6.17
+    >>> model
+    LinearGaussian(n_states=1, n_obs=1, n_inputs=0)
+    >>> cv = kfast.LinearGaussian(F=[[1.0, 1.0], [0.0, 1.0]], H=[[1.0, 0.0]], Q=0.01 * np.eye(2), R=0.25)
+    >>> cv.H.shape, cv.R.shape
+    ((1, 2), (1, 1))
+    >>> kfast.LinearGaussian(F=0.8, H=1.0, Q=-1.0, R=1.0)
+    Traceback (most recent call last):
+        ...
+    kfast.KfastError: Q: not positive semidefinite ...
     """
 
-    def __init__(self, F, H, Q, R, B=None, D=None, N=None):
+    def __init__(
+        self,
+        F: ArrayLike,
+        H: ArrayLike,
+        Q: ArrayLike,
+        R: ArrayLike,
+        B: Optional[ArrayLike] = None,
+        D: Optional[ArrayLike] = None,
+        N: Optional[ArrayLike] = None,
+    ) -> None:
         given = {"F": F, "H": H, "Q": Q, "R": R, "B": B, "D": D, "N": N}
         for name in ("F", "H", "Q", "R"):
             if given[name] is None:
                 raise _kfast.KfastError(f"{name}: required (got None)")
-        arrays = {k: (None if v is None else frozen_copy(k, v, scalar_shape=(1, 1))) for k, v in given.items()}
+        arrays: dict = {k: (None if v is None else frozen_copy(k, v, scalar_shape=(1, 1))) for k, v in given.items()}
         self._core = _kfast.LinearGaussian(**arrays)
         self.F: np.ndarray = arrays["F"]
         self.H: np.ndarray = arrays["H"]
@@ -189,16 +271,82 @@ class LinearGaussian:
         self.D: Optional[np.ndarray] = arrays["D"]
         self.N: Optional[np.ndarray] = arrays["N"]
 
-    @classmethod
-    def from_continuous(cls, A, Qc, H, R, dt=None, B=None, D=None, times=None) -> "LinearGaussian":
-        """The exact discrete model of dx = A x dt + B u dt + dbeta (E[dbeta dbeta'] = Qc dt, a
-        continuous intensity), sampled as y[t] = H x[t] + D u[t] + v[t], cov v = R (a
-        discrete covariance: white noise of intensity Rc averaged over h has R = Rc / h).
+    def __getstate__(self) -> dict:
+        """Pickling and copying keep the matrices (and any attributes a subclass adds); the
+        compiled core is rebuilt from them, validating them again."""
+        state = self.__dict__.copy()
+        del state["_core"]
+        return state
 
-        ``dt`` a scalar gives a constant model; an array of T intervals (dt[t] from step t to
-        t+1; the last one only moves x(T|T-1) past the data) or T sample ``times``
-        (irregular; the last step reuses the last interval) give per-step F[t] = e^{A dt[t]},
-        Qd[t], Bd[t] (Van Loan, computed in Rust).
+    def __setstate__(self, state: dict) -> None:
+        arrays: dict = {k: (None if state[k] is None else frozen_copy(k, state[k], scalar_shape=(1, 1))) for k in _MATRICES}
+        self.__dict__.update(state)
+        self.__dict__.update(arrays)
+        self._core = _kfast.LinearGaussian(**arrays)
+
+    @classmethod
+    def from_continuous(
+        cls,
+        A: ArrayLike,
+        Qc: ArrayLike,
+        H: ArrayLike,
+        R: ArrayLike,
+        dt: Optional[ArrayLike] = None,
+        B: Optional[ArrayLike] = None,
+        D: Optional[ArrayLike] = None,
+        times: Optional[ArrayLike] = None,
+    ) -> "LinearGaussian":
+        """The exact discrete model of a continuous-time one sampled at intervals ``dt``.
+
+        The state follows dx = A x dt + B u dt + dbeta with E[dbeta dbeta'] = Qc dt (Qc a
+        continuous white-noise intensity; u held over each interval), and is sampled as
+        y[t] = H x[t] + D u[t] + v[t] with cov v = R, a discrete covariance (white noise of
+        intensity Rc averaged over h has R = Rc / h).
+
+        Parameters
+        ----------
+        A : array_like, shape (n, n)
+            Continuous system matrix.
+        Qc : array_like, shape (n, n)
+            Intensity of the process noise.
+        H, R : array_like
+            Observation matrix (m, n) and discrete measurement noise covariance (m, m).
+        dt : float or array_like, shape (T,), optional
+            A scalar interval gives a constant model; an array of T intervals (dt[t] from step t to
+            t+1; the last one only moves x(T|T-1) past the data) gives per-step matrices.
+        B, D : array_like, optional
+            Continuous input matrix (n, k) and output input matrix (m, k).
+        times : array_like, shape (T,), optional
+            Sample times instead of ``dt`` (irregular; the last step reuses the last interval).
+
+        Returns
+        -------
+        LinearGaussian
+            F = e^{A dt}, Q = Qd(dt), B = Bd(dt), constant or per step.
+
+        Raises
+        ------
+        KfastError
+            For invalid matrices, both or neither of ``dt`` and ``times``, or intervals that are not
+            positive.
+
+        Notes
+        -----
+        Söderström (4.99)-(4.103)::
+
+            F = e^{A h},   Qd = integral over [0, h] of e^{A s} Qc e^{A' s} ds,   Bd = (integral of e^{A s} ds) B
+
+        computed with Van Loan's (1978) block matrix exponential (in its inverse-free form).
+
+        Examples
+        --------
+        An Ornstein-Uhlenbeck process of unit variance: Qd = 1 - e^{-2 dt}.
+
+        >>> ou = kfast.LinearGaussian.from_continuous(A=-1.0, Qc=2.0, H=1.0, R=0.1, dt=0.1)
+        >>> print(round(float(ou.F[0, 0]), 6), round(float(ou.Q[0, 0]), 6))
+        0.904837 0.181269
+        >>> kfast.LinearGaussian.from_continuous(A=-1.0, Qc=2.0, H=1.0, R=0.1, times=[0.0, 0.1, 0.3]).steps
+        3
         """
         from kfast.sampling import discretize, intervals
 
@@ -234,37 +382,86 @@ class LinearGaussian:
 
     def filter(
         self,
-        y,
-        x0,
-        P0=None,
-        u=None,
-        form: str = "joseph",
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: Optional[ArrayLike] = None,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
         steady_state: bool = False,
-        converge_tol=None,
-        outputs=None,
+        converge_tol: Optional[float] = None,
+        outputs: FilterOutputs = None,
     ) -> FilterResult:
-        """Kalman filter over y, shape (T, m) (or (T,) when m = 1); NaN marks a missing value.
+        """Kalman filter over the observations y.
 
-        (x0, P0) is the prior x(0|-1), P(0|-1): the first operation is the update with y[0].
-        A whole missing row skips the update; a partly missing row updates with the observed
-        components only (their rows of H, D, R and columns of N). u, shape (T, k), is required
-        when the model has B or D; u[t] enters x[t+1] via B and y[t] via D.
+        Parameters
+        ----------
+        y : array_like, shape (T, m), or (T,) when m = 1
+            Observations; NaN marks a missing value. A whole missing row skips the update; a partly
+            missing row updates with the observed components only (their rows of H, D, R and
+            columns of N).
+        x0 : array_like, shape (n,)
+            Prior mean x(0|-1) (a scalar when n = 1).
+        P0 : array_like, shape (n, n), optional
+            Prior covariance P(0|-1); required unless ``steady_state=True``.
+        u : array_like, shape (T, k), optional
+            Inputs, required when the model has B or D: u[t] enters x[t+1] via B and y[t] via D.
+        form : {"joseph", "standard"}
+            The covariance update: "joseph" (default), (I-KH)P(I-KH)' + KRK', stays positive
+            semidefinite under rounding; "standard", P - KSK' symmetrized, is cheaper.
+        steady_state : bool
+            Run the constant-gain filter with the stationary gains of :meth:`steady_state` from
+            the first step, O(n^2) per step (P0 is not used; constant models only). A missing value
+            runs the exact recursion through the gap (the covariance grows while nothing is
+            observed) and after it, until P(t+1|t) has converged back to the stationary one
+            (change below 1e-10 relative); then the gains are constant again. So with gaps the
+            estimates and the log-likelihood are those of the exact filter started from the
+            stationary covariance, to about that tolerance.
+        converge_tol : float, optional
+            Switch to constant gains once max|P(t+1|t) - P(t|t-1)| <= converge_tol * max(1, max|P|)
+            at a fully observed step, like statsmodels' steady-state shortcut; results then differ
+            from the exact filter by about that tolerance. Off by default.
+        outputs : str or iterable of str, optional
+            The names of the fields to store (e.g. ``("x_filt", "P_filt")``); the others are None,
+            which saves their memory and time. All by default.
 
-        form: "joseph" (default; (I-KH)P(I-KH)' + KRK', stays PSD) or "standard"
-        (P - K S K', symmetrized). Söderström Lemma 6.1 / (6.24).
+        Returns
+        -------
+        FilterResult
+            x_pred, P_pred, x_filt, P_filt, innov, S, K, K_pred, loglik, loglik_t, x_next, P_next.
 
-        steady_state=True: the constant-gain filter with the stationary gains of
-        ``steady_state()`` from the first step, O(n^2) per step (P0 is not used; constant
-        models only). A missing value runs the exact recursion through the gap (the
-        covariance grows while nothing is observed) and after it, until P(t+1|t) has
-        converged back to the stationary one (change below 1e-10 relative); then the gains
-        are constant again. So with gaps the estimates and the log-likelihood are those of the
-        exact filter started from the stationary covariance, to about that tolerance.
-        converge_tol: switch to constant gains once max|P(t+1|t) - P(t|t-1)| <= converge_tol
-        * max(1, max|P|) at a fully observed step, like statsmodels' steady-state shortcut;
-        results then differ from the exact filter by about that tolerance. Off by default.
-        outputs: the names of the fields to store (e.g. ("x_filt", "P_filt")); the others
-        are None, which saves their memory and time. All by default.
+        Raises
+        ------
+        KfastError
+            For data that do not fit the model (shapes, inf, missing inputs) or an invalid prior.
+        InnovationCovarianceError
+            When S(t) of the observed components is not positive definite at some step.
+
+        Notes
+        -----
+        Söderström Lemma 6.1, (6.22)-(6.27), at each step t::
+
+            e(t)     = y(t) - H x(t|t-1) - D u(t)            S(t) = H P(t|t-1) H' + R
+            K(t)     = P(t|t-1) H' S^-1                       x(t|t) = x(t|t-1) + K e(t)
+            P(t|t)   = (I - K H) P(t|t-1) (I - K H)' + K R K'        (Joseph form)
+            K_pred   = (F P(t|t-1) H' + N) S^-1               x(t+1|t) = F x(t|t-1) + B u(t) + K_pred e(t)
+            P(t+1|t) = F P(t|t-1) F' + Q - K_pred S K_pred'
+
+        and the log-likelihood is the sum over t of log N(e(t); 0, S(t)) (Söderström (6.142)).
+
+        Examples
+        --------
+        Söderström ex. 6.17: P0 = 1 is the stationary P(t|t-1), so P(t|t) = 0.5 at every step.
+
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> res = model.filter([0.3, -0.1, 0.7], x0=0.0, P0=1.0)
+        >>> print(res.x_filt[:, 0].round(4))
+        [0.15  0.01  0.354]
+        >>> print(res.P_filt[:, 0, 0].round(6), res.K[:, 0, 0].round(6))
+        [0.5 0.5 0.5] [0.5 0.5 0.5]
+        >>> print(round(res.loglik, 4))
+        -3.9509
+        >>> model.filter([0.3, np.nan, 0.7], 0.0, 1.0, outputs="x_filt").P_filt is None
+        True
         """
         if steady_state:
             if converge_tol is not None:
@@ -274,98 +471,401 @@ class LinearGaussian:
         elif P0 is None:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
-        outputs = _output_names(outputs)
-        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=outputs)
+        names = _output_names(outputs)
+        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=names)
         return FilterResult(**out, model=self)
 
-    def loglik(self, y, x0, P0, u=None, form: str = "joseph", converge_tol=None) -> float:
-        """The log-likelihood sum_t log N(y(t); H x(t|t-1) + D u(t), S(t)) alone (Söderström
-        (6.142)), computed without storing any per-step covariance. Same arguments as filter."""
+    def loglik(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+        converge_tol: Optional[float] = None,
+    ) -> float:
+        """The log-likelihood of y alone, without storing any per-step output.
+
+        Parameters
+        ----------
+        y, x0, P0, u, form, converge_tol
+            As for :meth:`filter`.
+
+        Returns
+        -------
+        float
+            The sum over t of log N(y(t); H x(t|t-1) + D u(t), S(t)) (Söderström (6.142)): the
+            exact Gaussian log-likelihood given the prior x(0) ~ N(x0, P0).
+
+        Raises
+        ------
+        KfastError, InnovationCovarianceError
+            As for :meth:`filter`.
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> print(round(model.loglik([0.3, -0.1, 0.7], x0=0.0, P0=1.0), 4))
+        -3.9509
+        """
         return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=_tolerance(converge_tol))
 
-    def steady_state(self, method: str = "doubling") -> "SteadyState":
-        """The stationary filter: P_pred (the stabilizing DARE solution, with SciPy's
-        solve_discrete_are(F', H', Q, R, s=N)), P_filt, K, K_pred, S, the closed-loop
-        eigenvalues of F - K_pred H and the residual (Söderström (6.91)). Raises
-        ``kfast.NoStabilizingSolutionError`` when (F, H) is not detectable or the noise does not
-        excite the unstable modes. Constant models only."""
+    def steady_state(self, method: DareMethod = "doubling") -> "SteadyState":
+        """The stationary Kalman filter of a constant model.
+
+        Parameters
+        ----------
+        method : {"doubling", "newton", "iteration", "eigen"}
+            The DARE algorithm (see :func:`kfast.solve_discrete_are`).
+
+        Returns
+        -------
+        SteadyState
+            P_pred (the stabilizing solution of the DARE), P_filt, K, K_pred, S, the closed-loop
+            eigenvalues of F - K_pred H and the relative residual.
+
+        Raises
+        ------
+        NoStabilizingSolutionError
+            When (F, H) is not detectable or the noise does not excite the unstable modes.
+        KfastError
+            For a model with per-step matrices.
+
+        Notes
+        -----
+        P solves Söderström (6.91)::
+
+            P = F P F' + Q - (F P H' + N) (H P H' + R)^-1 (F P H' + N)'
+
+        i.e. SciPy's ``solve_discrete_are(F', H', Q, R, s=N)``; S = H P H' + R,
+        K = P H' S^-1, K_pred = (F P H' + N) S^-1, P_filt = P - K S K'.
+
+        Examples
+        --------
+        Söderström ex. 6.17:
+
+        >>> ss = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0).steady_state()
+        >>> print(ss.P_pred.round(8), ss.K.round(8), ss.K_pred.round(8), ss.S.round(8))
+        [[1.]] [[0.5]] [[0.4]] [[2.]]
+        >>> print(ss.closed_loop_eigenvalues.real.round(8))
+        [0.4]
+        """
         from kfast.stationary import steady_state
 
         return steady_state(self, method=method)
 
     def innovations_form(self) -> "InnovationsForm":
-        """(F, K_pred, H, S) of the steady-state innovations model (Söderström Thm 4.2)."""
+        """The steady-state innovations model of a constant model.
+
+        Returns
+        -------
+        InnovationsForm
+            (F, K_pred, H, S) of x(t+1) = F x(t) + B u(t) + K_pred e(t), y(t) = H x(t) + D u(t) + e(t),
+            cov e = S: the same output statistics as the model, driven by its innovations
+            (Söderström Thm 4.2).
+
+        Raises
+        ------
+        NoStabilizingSolutionError, KfastError
+            As for :meth:`steady_state`.
+
+        Examples
+        --------
+        >>> inn = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0).innovations_form()
+        >>> print(inn.K_pred.round(8), inn.S.round(8))
+        [[0.4]] [[2.]]
+        """
         from kfast.stationary import innovations_form
 
         return innovations_form(self)
 
     def stationary_cov(self) -> np.ndarray:
-        """The stationary state covariance Pi = F Pi F' + Q (Söderström (4.22)); raises
-        ``kfast.KfastError`` unless F is stable (a random walk has none)."""
+        """The stationary state covariance Pi of a stable constant model.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            Pi = F Pi F' + Q (Söderström (4.22)).
+
+        Raises
+        ------
+        KfastError
+            Unless F is stable (a random walk has no stationary covariance) and constant.
+
+        Examples
+        --------
+        An AR(1) state: Pi = Q / (1 - F^2) = 0.68 / 0.36.
+
+        >>> print(kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0).stationary_cov().round(6))
+        [[1.888889]]
+        """
         from kfast.stationary import stationary_cov
 
         return stationary_cov(self)
 
-    def autocovariance(self, lags) -> np.ndarray:
-        """r_y(tau) = E[y(t+tau) y(t)'] of the stationary output for each lag, shape
-        (len(lags), m, m); r_y(-tau) = r_y(tau)'. Inputs are ignored (zero mean)."""
+    def autocovariance(self, lags: ArrayLike) -> np.ndarray:
+        """The autocovariance of the stationary output.
+
+        Parameters
+        ----------
+        lags : int or array_like of int
+            The lags tau.
+
+        Returns
+        -------
+        ndarray, shape (len(lags), m, m)
+            r_y(tau) = E[y(t+tau) y(t)'] (the lag on the first factor); r_y(-tau) = r_y(tau)'.
+            Inputs are ignored (zero mean).
+
+        Raises
+        ------
+        KfastError
+            Unless F is stable and constant, or for lags that are not integers.
+
+        Notes
+        -----
+        Söderström Lemma 4.2: r_y(0) = H Pi H' + R and r_y(tau) = H F^(tau-1) (F Pi H' + N) for
+        tau >= 1, with Pi the stationary state covariance.
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> print(model.autocovariance([0, 1, 2])[:, 0, 0].round(6))
+        [2.888889 1.511111 1.208889]
+        """
         from kfast.stationary import autocovariance
 
         return autocovariance(self, lags)
 
-    def spectral_density(self, omega, h: float = 1.0) -> np.ndarray:
-        """Output spectral density phi_y(e^{i omega h}), shape (len(omega), m, m), complex
-        Hermitian, with Söderström's normalization (no 1/2pi): r_y(k) = (1/2pi) times the
-        integral of phi_y e^{i omega k h} over |omega| <= pi/h. h is the sampling interval."""
+    def spectral_density(self, omega: ArrayLike, h: float = 1.0) -> np.ndarray:
+        """The spectral density of the stationary output.
+
+        Parameters
+        ----------
+        omega : float or array_like
+            Angular frequencies (radians per time unit).
+        h : float
+            The sampling interval (1: omega in radians per sample).
+
+        Returns
+        -------
+        ndarray, shape (len(omega), m, m), complex
+            phi_y(e^{i omega h}), Hermitian.
+
+        Raises
+        ------
+        KfastError
+            Unless F is stable and constant, or for h <= 0.
+
+        Notes
+        -----
+        phi_y(z) = h G(z) [[Q, N], [N', R]] G(1/z)' with G(z) = [H (zI - F)^-1, I] (Söderström
+        (4.25)), normalized without 1/2pi as in Söderström (3.22)-(3.25): r_y(k) is 1/2pi times the
+        integral of phi_y e^{i omega k h} over |omega| <= pi/h. (statsmodels divides by 2pi.)
+
+        Examples
+        --------
+        AR(1) in white noise: phi_y = Q / |e^{i omega} - F|^2 + R.
+
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> print(model.spectral_density([0.0, np.pi])[:, 0, 0].real.round(6))
+        [18.        1.209877]
+        """
         from kfast.stationary import spectral_density
 
         return spectral_density(self, omega, h=h)
 
-    def smooth(self, y, x0, P0, u=None, form: str = "joseph", outputs=None) -> SmootherResult:
-        """Rauch-Tung-Striebel fixed-interval smoother: x(t|T-1), P(t|T-1) and the lag-one
-        covariances Cov(x[t], x[t-1] | all data), with the filter's results. Same arguments
-        and missing-data rules as ``filter``. outputs: the names of the fields to store, among
-        "x_smooth", "P_smooth", "P_lag1" and the filter's (e.g. ("x_smooth", "P_smooth")); the
-        others are None, which saves their memory and time. All by default.
+    def smooth(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+        outputs: SmoothOutputs = None,
+    ) -> SmootherResult:
+        """Rauch-Tung-Striebel fixed-interval smoother: every state given all the data.
 
-        Backward pass (docs/algorithms.md, "RTS"): J(t) = (P(t|t) F' - K(t) N') P(t+1|t)^-1,
-        x(t|T-1) = x(t|t) + J (x(t+1|T-1) - x(t+1|t)), P(t|T-1) = P(t|t) + J (P(t+1|T-1) -
-        P(t+1|t)) J'. With N != 0 this is the N = 0 smoother of the decorrelated model of
-        Söderström Lemma 6.4 (F - N R^-1 H in place of F), written without R^-1.
-        A singular P(t+1|t) is handled with its pseudo-inverse.
+        Parameters
+        ----------
+        y, x0, P0, u, form
+            As for :meth:`filter` (the same missing-data rules).
+        outputs : str or iterable of str, optional
+            The names of the fields to store, among "x_smooth", "P_smooth", "P_lag1" and the
+            filter's (e.g. ``("x_smooth", "P_smooth")``); the others are None. All by default.
+
+        Returns
+        -------
+        SmootherResult
+            x(t|T-1), P(t|T-1), the lag-one covariances Cov(x[t], x[t-1] | all data) and the
+            forward pass (``.filter``).
+
+        Raises
+        ------
+        KfastError, InnovationCovarianceError
+            As for :meth:`filter`.
+
+        Notes
+        -----
+        The backward pass of Rauch, Tung & Striebel (1965) (docs/algorithms.md, "RTS"), for
+        t = T-2, ..., 0::
+
+            J(t)     = (P(t|t) F' - K(t) N') P(t+1|t)^-1
+            x(t|T-1) = x(t|t) + J(t) (x(t+1|T-1) - x(t+1|t))
+            P(t|T-1) = P(t|t) + J(t) (P(t+1|T-1) - P(t+1|t)) J(t)'
+
+        With N != 0 this is the N = 0 smoother of the decorrelated model of Söderström Lemma 6.4
+        (F - N R^-1 H in place of F), written without R^-1. A singular P(t+1|t) is handled with
+        its pseudo-inverse. The lag-one covariance is P(t+1|T-1) J(t)'.
+
+        Examples
+        --------
+        The random walk of Söderström ch. 8 with beta = 1 (Q = 1, R = beta (beta + 1) = 2): the
+        filter variance is beta, the smoother's tends to beta (beta + 1) / (2 beta + 1) = 2/3 away
+        from the ends.
+
+        >>> walk = kfast.LinearGaussian(F=1.0, H=1.0, Q=1.0, R=2.0)
+        >>> sm = walk.smooth(np.zeros(41), x0=0.0, P0=2.0)
+        >>> print(round(sm.filter.P_filt[20, 0, 0], 6), round(sm.P_smooth[20, 0, 0], 6))
+        1.0 0.666667
         """
         out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form), outputs=_output_names(outputs))
         filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
 
-    def smooth_fixed_lag(self, y, x0, P0, lag: int, u=None, form: str = "joseph") -> FixedLagResult:
-        """Fixed-lag smoother: the estimate of x[s] from y up to s + lag, for every s (near the
-        end, from all the data). lag = 0 is the filter, lag >= T-1 the RTS smoother.
+    def smooth_fixed_lag(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        lag: int,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+    ) -> FixedLagResult:
+        """Fixed-lag smoother: the estimate of each x[s] from y up to s + lag.
 
-        Structured recursion of Söderström (6.70)-(6.75): O(lag n^3) per step, never the
-        filter on the (lag+1) n augmented state. For online use see ``kfast.FixedLagSmoother``.
+        Parameters
+        ----------
+        y, x0, P0, u, form
+            As for :meth:`filter`.
+        lag : int
+            The lag L >= 0. L = 0 is the filter, L >= T-1 the RTS smoother.
+
+        Returns
+        -------
+        FixedLagResult
+            Row s of x_smooth, P_smooth is x(s | min(s + L, T-1)), P(s | min(s + L, T-1)).
+
+        Raises
+        ------
+        KfastError, InnovationCovarianceError
+            As for :meth:`filter`, and for a negative or non-integer lag.
+
+        Notes
+        -----
+        The structured recursion of Söderström (6.70)-(6.75): O(lag n^3) per step, never the filter
+        on the (lag+1) n augmented state of (6.58)-(6.65). For online use see
+        :class:`kfast.FixedLagSmoother`.
+
+        Examples
+        --------
+        The random walk of Söderström ch. 8 (beta = 1): the variance with lag 2 is 0.6875.
+
+        >>> walk = kfast.LinearGaussian(F=1.0, H=1.0, Q=1.0, R=2.0)
+        >>> res = walk.smooth_fixed_lag(np.zeros(20), x0=0.0, P0=2.0, lag=2)
+        >>> print(round(res.P_smooth[10, 0, 0], 6))
+        0.6875
         """
         y, x0, P0, u = self._data(y, x0, P0, u)
         out = self._core.smooth_fixed_lag(y, x0, P0, _index("lag", lag), u=u, form=_form(form))
         return FixedLagResult(lag=int(lag), **out)
 
-    def smooth_fixed_point(self, y, x0, P0, t_point: int, u=None, form: str = "joseph") -> FixedPointResult:
-        """Fixed-point smoother: the estimate of x[t_point] from y up to each t >= t_point, with
-        its covariance (Söderström (6.45)-(6.54)). Row 0 is the filtered x(t_point|t_point);
-        the last row equals the RTS smoother at t_point."""
+    def smooth_fixed_point(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        t_point: int,
+        u: Optional[ArrayLike] = None,
+        form: Form = "joseph",
+    ) -> FixedPointResult:
+        """Fixed-point smoother: the estimate of x[t_point] from more and more data.
+
+        Parameters
+        ----------
+        y, x0, P0, u, form
+            As for :meth:`filter`.
+        t_point : int
+            The step s whose state is estimated, 0 <= s < T.
+
+        Returns
+        -------
+        FixedPointResult
+            Row j of x, P is x(s | s + j), P(s | s + j): row 0 is the filtered estimate, the last
+            row equals the RTS smoother at s.
+
+        Raises
+        ------
+        KfastError, InnovationCovarianceError
+            As for :meth:`filter`, and for t_point outside the data.
+
+        Notes
+        -----
+        Söderström (6.45)-(6.54): with C = Cov(x(s) - x(s|t-1), x(t) - x(t|t-1)),
+        x(s|t) = x(s|t-1) + C H' S^-1 e(t), P(s|t) = P(s|t-1) - C H' S^-1 H C' and
+        C <- C (F - K_pred H)'.
+
+        Examples
+        --------
+        The random walk of Söderström ch. 8 (beta = 1): the variances V_0, ..., V_3.
+
+        >>> walk = kfast.LinearGaussian(F=1.0, H=1.0, Q=1.0, R=2.0)
+        >>> res = walk.smooth_fixed_point(np.zeros(20), x0=0.0, P0=2.0, t_point=5)
+        >>> print(res.P[:4, 0, 0].round(6))
+        [1.       0.75     0.6875   0.671875]
+        """
         t_point = _index("t_point", t_point)
         y, x0, P0, u = self._data(y, x0, P0, u)
         out = self._core.smooth_fixed_point(y, x0, P0, t_point, u=u, form=_form(form))
         return FixedPointResult(t_point=t_point, **out)
 
-    def forecast(self, x, P, steps: int, u=None) -> Forecast:
-        """Forecast `steps` steps from a one-step prediction (x, P) = x(t|t-1), P(t|t-1), such
-        as ``FilterResult.x_next`` or ``KalmanFilter.x`` after ``predict()``. Row j is the
-        forecast of step t+j (row 0 is (x, P) itself); u, shape (steps, k), holds u(t+j).
+    def forecast(self, x: ArrayLike, P: ArrayLike, steps: int, u: Optional[ArrayLike] = None) -> Forecast:
+        """Forecast ``steps`` steps from a one-step prediction.
 
-        x(t+j+1|t-1) = F x(t+j|t-1) + B u(t+j), P(t+j+1|t-1) = F P F' + Q (Söderström
-        (6.38)-(6.42)); y forecasts H x + D u with covariance H P H' + R. Constant models only.
-        Unpacks as ``mean, cov = model.forecast(...)``.
+        Parameters
+        ----------
+        x, P : array_like, shapes (n,) and (n, n)
+            x(t|t-1), P(t|t-1), such as ``FilterResult.x_next``, ``P_next`` or ``KalmanFilter.x``,
+            ``P`` after ``predict()``.
+        steps : int
+            Number of steps; row j forecasts step t + j (row 0 is (x, P) itself).
+        u : array_like, shape (steps, k), optional
+            The inputs u(t + j); required when the model has B or D.
+
+        Returns
+        -------
+        Forecast
+            x, P (state means and covariances), y, y_cov (output means H x + D u and covariances
+            H P H' + R); unpacks as ``mean, cov = model.forecast(...)``.
+
+        Raises
+        ------
+        KfastError
+            For a model with per-step matrices, or invalid x, P or u.
+
+        Notes
+        -----
+        Söderström (6.38)-(6.42): x(t+j+1|t-1) = F x(t+j|t-1) + B u(t+j),
+        P(t+j+1|t-1) = F P(t+j|t-1) F' + Q. For a stable F, P tends to the stationary covariance.
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> fc = model.forecast(x=1.0, P=1.0, steps=4)
+        >>> print(fc.x[:, 0].round(4), fc.P[:, 0, 0].round(4))
+        [1.    0.8   0.64  0.512] [1.     1.32   1.5248 1.6559]
+        >>> print(fc.y_cov[:, 0, 0].round(4))
+        [2.     2.32   2.5248 2.6559]
         """
         steps = _index("steps", steps)
         x, P = self._prior(x, P, names=("x", "P"))
@@ -373,11 +873,50 @@ class LinearGaussian:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
         return Forecast(**self._core.forecast(x, P, steps, u=u))
 
-    def simulate(self, T: int, x0, P0, u=None, seed=None) -> Simulation:
-        """Draw a sample path of T steps: x[0] ~ N(x0, P0), (w[t], v[t]) ~ N(0, [[Q, N],
-        [N', R]]) jointly (so N is honoured), y[t] = H x[t] + D u[t] + v[t],
-        x[t+1] = F x[t] + B u[t] + w[t]. ``seed`` (an int or a numpy Generator) makes the
-        draw reproducible. Returns ``Simulation(x, y)``, shapes (T, n) and (T, m).
+    def simulate(
+        self,
+        T: int,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        seed: Union[int, np.random.Generator, None] = None,
+    ) -> Simulation:
+        """Draw a sample path of the model.
+
+        Parameters
+        ----------
+        T : int
+            Number of steps (the model's T for per-step matrices).
+        x0, P0 : array_like
+            x[0] ~ N(x0, P0).
+        u : array_like, shape (T, k), optional
+            Inputs; required when the model has B or D.
+        seed : int or numpy.random.Generator, optional
+            Makes the draw reproducible.
+
+        Returns
+        -------
+        Simulation
+            ``x, y``, shapes (T, n) and (T, m).
+
+        Raises
+        ------
+        KfastError
+            For T < 1, a T that does not match per-step matrices, or invalid x0, P0, u.
+
+        Notes
+        -----
+        (w[t], v[t]) ~ N(0, [[Q, N], [N', R]]) jointly (so N is honoured), y[t] = H x[t] + D u[t]
+        + v[t], x[t+1] = F x[t] + B u[t] + w[t]. Singular covariances are allowed.
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> x, y = model.simulate(100, x0=0.0, P0=1.0, seed=1)
+        >>> x.shape, y.shape
+        ((100, 1), (100, 1))
+        >>> bool(np.array_equal(y, model.simulate(100, x0=0.0, P0=1.0, seed=1).y))
+        True
         """
         T = _index("T", T)
         if T == 0:
@@ -394,16 +933,58 @@ class LinearGaussian:
         x, y = self._core.propagate(x_init, w, v, u=u)
         return Simulation(x, y)
 
-    def em(self, y, x0, P0, n_iter: int = 10, fit=("F", "H", "Q", "R", "x0", "P0"), u=None, tol=None, progress=False):
-        """Expectation-maximization (Shumway & Stoffer) of the parameters named in ``fit``
-        (any of "F", "H", "Q", "R", "x0", "P0"), starting from this model and (x0, P0).
+    def em(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        n_iter: int = 10,
+        fit: Sequence[EMParameter] = ("F", "H", "Q", "R", "x0", "P0"),
+        u: Optional[ArrayLike] = None,
+        tol: Optional[float] = None,
+        progress: bool = False,
+    ) -> "EMResult":
+        """Expectation-maximization estimates of the parameters named in ``fit``.
 
-        E-step: the RTS smoother with lag-one covariances (in Rust). M-step: closed forms, in
-        pykalman's order H, R, F, Q, x0, P0. B and D stay fixed; N is not supported. Missing
-        data: rows with nothing observed drop out of the H and R updates; partly observed rows
-        use the conditional moments of their missing components (Shumway & Stoffer 2000).
-        The log-likelihood never decreases. ``tol`` stops early when its relative change is
-        below tol; ``progress`` prints the iterations to stderr. Returns ``EMResult``.
+        Parameters
+        ----------
+        y, x0, P0, u
+            As for :meth:`filter`; (x0, P0) is the starting prior.
+        n_iter : int
+            The maximum number of iterations.
+        fit : sequence of {"F", "H", "Q", "R", "x0", "P0"}
+            The parameters to estimate; the others stay fixed.
+        tol : float, optional
+            Stop early when the relative change of the log-likelihood is below tol.
+        progress : bool
+            Print the iterations to stderr.
+
+        Returns
+        -------
+        EMResult
+            The estimated model, x0, P0 and the log-likelihood before each iteration and at the
+            result (non-decreasing).
+
+        Raises
+        ------
+        KfastError
+            For models with per-step matrices or N, unknown parameter names, or invalid data.
+
+        Notes
+        -----
+        Shumway & Stoffer (1982). E-step: the RTS smoother with lag-one covariances (in Rust).
+        M-step: closed forms, in pykalman's order H, R, F, Q, x0, P0; B and D stay fixed. Missing
+        data: rows with nothing observed drop out of the H and R updates; partly observed rows use
+        the conditional moments of their missing components (Shumway & Stoffer 2000).
+
+        Examples
+        --------
+        >>> true = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> _, y = true.simulate(200, x0=0.0, P0=1.0, seed=7)
+        >>> start = kfast.LinearGaussian(F=0.5, H=1.0, Q=1.0, R=1.0)
+        >>> res = start.em(y, x0=0.0, P0=1.0, n_iter=20, fit=("F", "Q", "R"))
+        >>> res.n_iter, bool(np.all(np.diff(res.loglik) >= -1e-9))
+        (20, True)
         """
         from kfast.estimation import em
 
@@ -419,14 +1000,15 @@ class LinearGaussian:
         bottom = np.concatenate([np.swapaxes(N, -1, -2), R], axis=-1)
         return np.concatenate([top, bottom], axis=-2)
 
-    def _data(self, y, x0, P0, u):
-        y = _column_if_1d(as_float64("y", y), self.n_obs)
-        x0, P0 = self._prior(x0, P0)
-        if u is not None:
-            u = _column_if_1d(as_float64("u", u), self.n_inputs)
-        return y, x0, P0, u
+    def _data(
+        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray]]:
+        y_arr = _column_if_1d(as_float64("y", y), self.n_obs)
+        x0_arr, P0_arr = self._prior(x0, P0)
+        u_arr = None if u is None else _column_if_1d(as_float64("u", u), self.n_inputs)
+        return y_arr, x0_arr, P0_arr, u_arr
 
-    def _prior(self, x, P, names=("x0", "P0")):
+    def _prior(self, x: ArrayLike, P: ArrayLike, names: tuple[str, str] = ("x0", "P0")) -> tuple[np.ndarray, np.ndarray]:
         """A mean and covariance as float64; scalars (size 1) for a scalar state."""
         x, P = as_float64(names[0], x), as_float64(names[1], P)
         if self.n_states == 1:
@@ -482,7 +1064,7 @@ def _index(name: str, value) -> int:
     return int(value)
 
 
-def _form(form: str) -> str:
+def _form(form: str) -> Form:
     if form not in _FORMS:
         raise _kfast.KfastError(f"form: expected one of {_FORMS}, got {form!r}")
-    return form
+    return cast(Form, form)

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
 from kfast._model import LinearGaussian, _form
+from kfast._typing import Form
 
 __all__ = ["filter_batch", "BatchResult"]
 
@@ -36,22 +38,64 @@ class BatchResult:
 
 def filter_batch(
     model: LinearGaussian,
-    Y,
-    x0,
-    P0,
-    u=None,
+    Y: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
+    u: Optional[ArrayLike] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
-    form: str = "joseph",
+    form: Form = "joseph",
 ) -> BatchResult:
-    """Kalman-filter every series of Y, shape (B, T, m) (NaN = missing, per component), in
-    parallel over series with one release of the GIL. x0 is (n,) shared or (B, n); P0 (n, n)
-    shared or (B, n, n); u (T, k) shared or (B, T, k). ``threads`` (default: all cores).
+    """Kalman-filter many independent series through one model, in parallel.
 
-    When nothing is missing and P0 is shared, the covariance recursion (which does not
-    depend on the data) is computed once and each series only moves its state. Results are
-    those of ``model.filter`` on each series alone, bit for bit. A pure function of its
-    arguments: it maps unchanged over chunks of series (e.g. blocks of a Dask array).
+    Parameters
+    ----------
+    model : LinearGaussian
+        The model, shared by all series.
+    Y : array_like, shape (B, T, m), or (B, T) when m = 1
+        B series of T steps; NaN marks a missing value (per component).
+    x0 : array_like, shape (n,) or (B, n)
+        Prior mean x(0|-1), shared or one per series.
+    P0 : array_like, shape (n, n) or (B, n, n)
+        Prior covariance P(0|-1), shared or one per series.
+    u : array_like, shape (T, k) or (B, T, k), optional
+        Inputs, shared or one set per series; required when the model has B or D.
+    return_covs : bool
+        Whether to return P(t|t).
+    threads : int, optional
+        Number of threads (default: all cores).
+    form : {"joseph", "standard"}
+        The covariance update, as in :meth:`LinearGaussian.filter`.
+
+    Returns
+    -------
+    BatchResult
+        x_filt (B, T, n), P_filt (B, T, n, n) or None, loglik (B,), shared_covariance.
+
+    Raises
+    ------
+    KfastError, InnovationCovarianceError
+        As for :meth:`LinearGaussian.filter` (the message names the series).
+
+    Notes
+    -----
+    The series are filtered in parallel with one release of the GIL. When nothing is missing
+    and P0 is shared, the covariance recursion (which does not depend on the data) is computed
+    once and each series only moves its state: P_filt is then a read-only broadcast view.
+    Results are those of ``model.filter`` on each series alone, bit for bit. A pure function
+    of its arguments: it maps unchanged over chunks of series (e.g. blocks of a Dask array).
+
+    Examples
+    --------
+    >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+    >>> Y = np.array([[0.3, -0.1, 0.7], [1.0, 0.5, -0.2]])
+    >>> res = kfast.filter_batch(model, Y, x0=0.0, P0=1.0)
+    >>> res
+    BatchResult(B=2, T=3, n=1, shared_covariance=True)
+    >>> bool(res.loglik[0] == model.loglik(Y[0], 0.0, 1.0))
+    True
+    >>> print(res.x_filt[0, :, 0].round(4))
+    [0.15  0.01  0.354]
     """
     Y = as_float64("Y", Y)
     if Y.ndim == 2 and model.n_obs == 1:

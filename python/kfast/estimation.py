@@ -12,10 +12,12 @@ from dataclasses import dataclass
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast._arrays import as_float64
 from kfast._kfast import KfastError
 from kfast._model import LinearGaussian
+from kfast._typing import EMParameter
 
 __all__ = ["fit", "FitResult", "em", "EMResult"]
 
@@ -64,22 +66,64 @@ def _build(build: Callable, theta: np.ndarray, where: str):
 
 def fit(
     build: Callable[[np.ndarray], tuple],
-    theta0,
-    y,
-    u=None,
+    theta0: ArrayLike,
+    y: ArrayLike,
+    u: Optional[ArrayLike] = None,
     *,
     method: str = "L-BFGS-B",
     bounds: Optional[Sequence] = None,
     options: Optional[dict] = None,
 ) -> FitResult:
-    """Maximum likelihood over parameters theta: maximizes ``model.loglik(y, x0, P0, u)`` where
-    ``(model, x0, P0) = build(theta)``, with ``scipy.optimize.minimize(method, bounds)``.
+    """Maximum-likelihood estimates of the parameters theta of a model.
 
-    The log-likelihood is the exact Gaussian one of the prior x(0|-1) ~ N(x0, P0) (Söderström
-    (6.142)); missing data (NaN) are handled. Parameters where ``build`` raises a kfast error
-    (e.g. a negative variance) score -inf; prefer transformations (exp, tanh) that keep every
-    theta valid. Standard errors come from the numerical Hessian (central differences) at the
-    optimum.
+    Parameters
+    ----------
+    build : callable
+        ``build(theta) -> (model, x0, P0)``: the model and prior for the parameters theta (a
+        1-D array). Parameters where it raises a kfast error (e.g. a negative variance) score
+        -inf; prefer transformations (exp, tanh) that keep every theta valid.
+    theta0 : array_like, shape (p,)
+        The starting point.
+    y : array_like, shape (T, m), or (T,) when m = 1
+        Observations (NaN = missing).
+    u : array_like, shape (T, k), optional
+        Inputs.
+    method : str
+        The ``scipy.optimize.minimize`` method.
+    bounds : sequence, optional
+        Bounds on theta, for the methods that take them.
+    options : dict, optional
+        Options of the optimizer.
+
+    Returns
+    -------
+    FitResult
+        theta, its standard errors and covariance, the log-likelihood at theta, the model and
+        prior built from it, and scipy's OptimizeResult.
+
+    Raises
+    ------
+    KfastError
+        When ``build`` does not return (LinearGaussian, x0, P0), or the log-likelihood at
+        theta0 is not finite.
+
+    Notes
+    -----
+    Maximizes ``model.loglik(y, x0, P0, u)``, the exact Gaussian log-likelihood of the prior
+    x(0|-1) ~ N(x0, P0) (Söderström (6.142)), with ``scipy.optimize.minimize``. The covariance
+    of theta is the inverse of minus the Hessian of the log-likelihood (central differences)
+    at the optimum; a RuntimeWarning says when it is not positive definite.
+
+    Examples
+    --------
+    White noise y = v with variance R = e^theta: the estimate is the mean of y^2, with standard
+    error sqrt(2 / T) on the log scale.
+
+    >>> def build(theta):
+    ...     return kfast.LinearGaussian(F=0.0, H=1.0, Q=0.0, R=np.exp(theta[0])), 0.0, 0.0
+    >>> res = kfast.fit(build, [0.0], [1.0, -2.0, 3.0, 0.5])
+    >>> print(round(float(np.exp(res.theta[0])), 2), round(float(res.se[0]), 2))
+    3.56 0.71
     """
     from scipy.optimize import minimize
 
@@ -167,22 +211,29 @@ class EMResult:
         return f"EMResult(n_iter={self.n_iter}, loglik={self.loglik[-1]:.6g}, converged={self.converged})"
 
 
-EM_PARAMETERS = ("F", "H", "Q", "R", "x0", "P0")
+EM_PARAMETERS: tuple[EMParameter, ...] = ("F", "H", "Q", "R", "x0", "P0")
 
 
 def em(
     model: LinearGaussian,
-    y,
-    x0,
-    P0,
+    y: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
     n_iter: int = 10,
-    fit: Sequence[str] = EM_PARAMETERS,
-    u=None,
+    fit: Sequence[EMParameter] = EM_PARAMETERS,
+    u: Optional[ArrayLike] = None,
     tol: Optional[float] = None,
     progress: bool = False,
 ) -> EMResult:
-    """Expectation-maximization (Shumway & Stoffer) for a constant model; see
-    ``LinearGaussian.em``."""
+    """Expectation-maximization for a constant model: see :meth:`LinearGaussian.em`.
+
+    Examples
+    --------
+    >>> model = kfast.LinearGaussian(F=0.5, H=1.0, Q=1.0, R=1.0)
+    >>> res = kfast.estimation.em(model, [0.3, -0.1, 0.7, 1.2], x0=0.0, P0=1.0, n_iter=3)
+    >>> res.n_iter, len(res.loglik)
+    (3, 4)
+    """
     fit = tuple(fit)
     unknown = set(fit) - set(EM_PARAMETERS)
     if unknown:
@@ -220,7 +271,9 @@ def em(
         history.append(final.loglik(y, x0, P0, u=u))
     if progress:
         print(file=sys.stderr)
-    return EMResult(model=final, x0=x0, P0=P0, loglik=np.array(history), n_iter=iterations, converged=converged)
+    return EMResult(
+        model=final, x0=np.asarray(x0), P0=np.asarray(P0), loglik=np.array(history), n_iter=iterations, converged=converged
+    )
 
 
 def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
@@ -20,8 +21,34 @@ from kfast.solvers import _matrix, care
 __all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals", "stationary_cov_continuous"]
 
 
-def expm(a) -> np.ndarray:
-    """e^a by scaling and squaring with the degree-13 Padé approximant (Higham 2005)."""
+def expm(a: ArrayLike) -> np.ndarray:
+    """The matrix exponential e^a.
+
+    Parameters
+    ----------
+    a : array_like, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+
+    Raises
+    ------
+    KfastError
+        For input that is not a finite real square matrix.
+
+    Notes
+    -----
+    Scaling and squaring with the degree-13 Padé approximant (Higham 2005).
+
+    Examples
+    --------
+    >>> print(kfast.expm([[0.0, 1.0], [0.0, 0.0]]))
+    [[1. 1.]
+     [0. 1.]]
+    >>> print(round(float(kfast.expm(1.0)[0, 0]), 12))
+    2.718281828459
+    """
     return _kfast.expm(_matrix("a", a))
 
 
@@ -36,10 +63,55 @@ class Discretized(NamedTuple):
     """The integral of e^{As} ds times B (zero-order hold), or None without B."""
 
 
-def discretize(A, Qc, dt, B=None) -> Discretized:
-    """Exact discretization (Van Loan, inverse-free form) of dx = A x dt + B u dt + dbeta,
-    E[dbeta dbeta'] = Qc dt, over an interval dt > 0. A scalar dt gives (n, n) matrices; an
-    array of T intervals gives per-step stacks (T, n, n), computed in Rust."""
+def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike] = None) -> Discretized:
+    """Exact discretization of a continuous-time linear model.
+
+    The model is dx = A x dt + B u dt + dbeta with E[dbeta dbeta'] = Qc dt (Qc a white-noise
+    intensity), the input held constant over each interval (zero-order hold).
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    Qc : array_like, shape (n, n)
+        Symmetric positive semidefinite intensity.
+    dt : float or array_like, shape (T,)
+        The interval, or T intervals (then every output is a per-step stack), all > 0.
+    B : array_like, shape (n, k), optional
+
+    Returns
+    -------
+    Discretized
+        ``F, Qd, Bd``: e^{A dt}, the discrete process noise covariance and the input matrix
+        (None without B); (n, n) for a scalar dt, (T, n, n) for an array.
+
+    Raises
+    ------
+    KfastError
+        For invalid matrices or intervals.
+
+    Notes
+    -----
+    Söderström (4.99)-(4.103)::
+
+        F = e^{A h},   Qd = integral over [0, h] of e^{A s} Qc e^{A' s} ds,   Bd = (integral of e^{A s} ds) B
+
+    from Van Loan's (1978) block exponential in its inverse-free form,
+    exp(h [[-A, Qc], [0, A']]) = [[., E12], [0, E22]], F = E22', Qd = F E12. Qd is full even when
+    Qc is sparse.
+
+    Examples
+    --------
+    The damped resonator of Grewal & Andrews ex. 4.9 (omega_r = 2, omega_d = 1/3, q = 1,
+    dt = 0.1):
+
+    >>> A = np.array([[0.0, 1.0], [-(4 + 1 / 9), -2 / 3]])
+    >>> F, Qd, Bd = kfast.discretize(A, np.diag([0.0, 1.0]), 0.1)
+    >>> print((Qd * 1e3).round(5))
+    [[ 0.31459  4.6155 ]
+     [ 4.6155  92.36921]]
+    >>> Bd is None
+    True
+    """
     dt_arr = as_float64("dt", dt)
     if dt_arr.ndim > 1:
         raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {dt_arr.shape}")
@@ -49,10 +121,31 @@ def discretize(A, Qc, dt, B=None) -> Discretized:
     return Discretized(out["F"], out["Qd"], out.get("Bd"))
 
 
-def intervals(dt=None, times=None) -> np.ndarray:
-    """The per-step intervals of an irregularly sampled series: ``dt`` (one per step: dt[t] is
-    the interval from step t to t+1, the last one only moves x(T|T-1) past the data), or
-    ``times`` (T strictly increasing sample times; the last step reuses the last interval)."""
+def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None) -> np.ndarray:
+    """The per-step intervals of an irregularly sampled series.
+
+    Parameters
+    ----------
+    dt : array_like, shape (T,), optional
+        One interval per step: dt[t] is the interval from step t to t+1 (the last one only
+        moves x(T|T-1) past the data).
+    times : array_like, shape (T,), optional
+        Strictly increasing sample times; the last step reuses the last interval.
+
+    Returns
+    -------
+    ndarray, shape (T,)
+
+    Raises
+    ------
+    KfastError
+        Unless exactly one of dt and times is given, and all intervals are positive and finite.
+
+    Examples
+    --------
+    >>> print(kfast.sampling.intervals(times=[0.0, 0.5, 2.0]))
+    [0.5 1.5 1.5]
+    """
     if (dt is None) == (times is None):
         raise _kfast.KfastError("dt, times: give exactly one of them")
     if times is not None:
@@ -74,11 +167,32 @@ def intervals(dt=None, times=None) -> np.ndarray:
     return d
 
 
-def stationary_cov_continuous(A, Qc) -> np.ndarray:
-    """The stationary covariance Pi of dx = A x dt + dbeta (intensity Qc): A Pi + Pi A' + Qc
-    = 0 (Söderström (4.90)-(4.92)). Raises ``kfast.KfastError`` unless A is Hurwitz: the
-    Lyapunov equation may still have a (negative) solution, which is not a covariance
-    (Grewal & Andrews problem 4.27)."""
+def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
+    """The stationary covariance of dx = A x dt + dbeta with intensity Qc.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    Qc : array_like, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        Pi with A Pi + Pi A' + Qc = 0 (Söderström (4.90)-(4.92)).
+
+    Raises
+    ------
+    KfastError
+        Unless A is Hurwitz: the Lyapunov equation may still have a (negative) solution, which
+        is not a covariance (Grewal & Andrews problem 4.27).
+
+    Examples
+    --------
+    Grewal & Andrews ex. 4.7: dx/dt = -x + w with unit intensity has P(inf) = 1/2.
+
+    >>> print(kfast.stationary_cov_continuous(-1.0, 1.0))
+    [[0.5]]
+    """
     from kfast.solvers import solve_continuous_lyapunov
 
     A, Qc = _matrix("A", A), _matrix("Qc", Qc)
@@ -106,8 +220,40 @@ class KalmanBucy:
         return f"KalmanBucy(n={len(self.P)})"
 
 
-def kalman_bucy(A, Qc, H, Rc) -> KalmanBucy:
-    """Stationary Kalman-Bucy gain via the CARE (solve_continuous_are(A', H', Qc, Rc))."""
+def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> KalmanBucy:
+    """The stationary continuous-time (Kalman-Bucy) filter.
+
+    For dx = A x dt + dbeta, dy = H x dt + dv with intensities Qc and Rc.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    Qc : array_like, shape (n, n)
+    H : array_like, shape (m, n)
+    Rc : array_like, shape (m, m)
+        Positive definite.
+
+    Returns
+    -------
+    KalmanBucy
+        P (stationary error covariance), K = P H' Rc^-1 and the eigenvalues of A - K H.
+
+    Raises
+    ------
+    NoStabilizingSolutionError
+        When (A, H) is not detectable or the noise does not excite the unstable modes.
+
+    Notes
+    -----
+    P solves A P + P A' - P H' Rc^-1 H P + Qc = 0, i.e. ``solve_continuous_are(A', H', Qc, Rc)``;
+    the filter is dx^ = A x^ dt + K (dy - H x^ dt).
+
+    Examples
+    --------
+    >>> kb = kfast.kalman_bucy(A=-1.0, Qc=1.0, H=1.0, Rc=1.0)
+    >>> print(kb.P.round(6), kb.K.round(6), kb.closed_loop_eigenvalues.real.round(6))
+    [[0.414214]] [[0.414214]] [-1.414214]
+    """
     A, H = _matrix("A", A), _matrix("H", H)
     sol = care(A.T, H.T, Qc, Rc)
     return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])

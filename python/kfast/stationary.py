@@ -15,9 +15,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
+from kfast._typing import DareMethod
 from kfast.solvers import dare
 
 if TYPE_CHECKING:
@@ -70,7 +72,7 @@ def _require_constant(model: "LinearGaussian", what: str) -> None:
         raise _kfast.KfastError(f"model: {what} needs constant matrices (this model has per-step ones)")
 
 
-def steady_state(model: "LinearGaussian", method: str = "doubling") -> SteadyState:
+def steady_state(model: "LinearGaussian", method: DareMethod = "doubling") -> SteadyState:
     _require_constant(model, "steady_state()")
     F, H, Q, R = model.F, model.H, model.Q, model.R
     sol = dare(F.T, H.T, Q, R, s=model.N, method=method)
@@ -100,7 +102,7 @@ def stationary_cov(model: "LinearGaussian") -> np.ndarray:
     return _kfast.stationary_covariance(np.ascontiguousarray(model.F), np.ascontiguousarray(model.Q))
 
 
-def autocovariance(model: "LinearGaussian", lags) -> np.ndarray:
+def autocovariance(model: "LinearGaussian", lags: ArrayLike) -> np.ndarray:
     """r_y(tau) for each tau in lags, shape (len(lags), m, m) (Söderström Lemma 4.2; with N,
     r_y(tau) = H F^(tau-1) (F Pi H' + N) for tau >= 1, r_y(0) = H Pi H' + R)."""
     lags = as_float64("lags", lags)
@@ -123,7 +125,7 @@ def autocovariance(model: "LinearGaussian", lags) -> np.ndarray:
     return out
 
 
-def spectral_density(model: "LinearGaussian", omega, h: float = 1.0) -> np.ndarray:
+def spectral_density(model: "LinearGaussian", omega: ArrayLike, h: float = 1.0) -> np.ndarray:
     """phi_y(e^{i w h}) = h G(z) [[Q, N], [N', R]] G(1/z)', G(z) = [H (zI - F)^-1, I]
     (Söderström (4.25)), shape (len(omega), m, m), complex Hermitian; see the module doc for
     the normalization."""

@@ -235,6 +235,8 @@ fn outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> (FilterO
 #[pymodule]
 fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    // The one version: Cargo.toml's (pyproject.toml takes it too, as a dynamic field).
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("KfastError", py.get_type::<KfastError>())?;
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
     m.add("NoStabilizingSolutionError", py.get_type::<NoStabilizingSolutionError>())?;

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
 use super::{
     data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError, OutArrays,
@@ -71,6 +71,31 @@ impl PyLinearGaussian {
     #[getter]
     fn steps(&self) -> Option<usize> {
         self.inner.steps()
+    }
+
+    /// Pickling: the constructor's arguments F, H, Q, R, B, D, N (validated again on
+    /// unpickling).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyType>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let mats = slf.get().inner.matrices();
+        let array = |mat: &StepMatrix| -> PyResult<Bound<'py, PyAny>> {
+            let (shape, values) = match mat.steps() {
+                None => (vec![mat.rows(), mat.cols()], mat.at(0).to_vec()),
+                Some(t) => (vec![t, mat.rows(), mat.cols()], (0..t).flat_map(|s| mat.at(s).iter().copied()).collect()),
+            };
+            Ok(to_array(py, &values, &shape)?.into_any())
+        };
+        let optional = |mat: &Option<StepMatrix>| mat.as_ref().map(array).transpose();
+        let args = [
+            Some(array(&mats.f)?),
+            Some(array(&mats.h)?),
+            Some(array(&mats.q)?),
+            Some(array(&mats.r)?),
+            optional(&mats.b)?,
+            optional(&mats.d)?,
+            optional(&mats.n)?,
+        ];
+        Ok((slf.get_type(), PyTuple::new(py, args)?))
     }
 
     /// Runs the filter; returns a dict of the FilterResult fields named in `outputs` (all by

@@ -4,8 +4,9 @@ use std::borrow::Borrow;
 use std::sync::Arc;
 
 use super::step::{UpdateForm, Workspace};
+use crate::core::dense::symmetrize;
 use crate::core::dims::Dyn;
-use crate::core::validate::{check_input_row, check_observation, check_prior};
+use crate::core::validate::{check_input_row, check_observation, check_prior, check_psd, check_symmetric};
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
 use crate::linear::validate::check_input_width;
@@ -52,6 +53,47 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         }
         let sys = self.model.borrow().at(self.t);
         self.ws.update(&sys, y, u, self.form, self.t)?;
+        self.loglik += self.ws.loglik_t();
+        self.updated = true;
+        Ok(())
+    }
+
+    /// [`update`](Self::update) with this step's observation matrix `h` (m × n) and/or
+    /// measurement noise covariance `r` (m × m), row-major, in place of the model's, for this
+    /// update only (filterpy's `update(z, R, H)`). Both must be finite, `r` symmetric (it is
+    /// symmetrized, as the model's R) positive semidefinite, and with N the joint covariance
+    /// [[Q, N], [N', r]] too. The time update that follows uses the model's F, B, Q, N with the
+    /// gains of this update.
+    pub fn update_with(&mut self, y: &[f64], u: Option<&[f64]>, h: Option<&[f64]>, r: Option<&[f64]>) -> Result<()> {
+        if h.is_none() && r.is_none() {
+            return self.update(y, u);
+        }
+        let (n, m, t) = (self.model().n_states(), self.model().n_obs(), self.t);
+        if y.len() != m {
+            return Err(Error::arg_at("y", t, format!("expected {m} values (m = {m}), got {}", y.len())));
+        }
+        check_observation(y, Some(t))?;
+        self.check_input(u, "D", self.model().matrices().d.is_some())?;
+        if self.updated {
+            return Err(Error::arg_at("y", t, "update called twice without a predict in between"));
+        }
+        let mut sys = self.model.borrow().at(t);
+        if let Some(h) = h {
+            check_step_matrix("H", h, m, n, t)?;
+            sys.h = h;
+        }
+        let r_sym;
+        if let Some(r) = r {
+            check_step_matrix("R", r, m, m, t)?;
+            check_symmetric(r, m).map_err(|p| Error::arg_at("R", t, p))?;
+            r_sym = symmetrized(r, m);
+            check_psd(&r_sym, m).map_err(|p| Error::arg_at("R", t, p))?;
+            if let Some(nn) = sys.n {
+                check_joint_psd(sys.q, nn, &r_sym, n, m).map_err(|p| Error::arg_at("R", t, p))?;
+            }
+            sys.r = &r_sym;
+        }
+        self.ws.update(&sys, y, u, self.form, t)?;
         self.loglik += self.ws.loglik_t();
         self.updated = true;
         Ok(())
@@ -142,4 +184,86 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub(crate) fn workspace(&self) -> &Workspace<Dyn> {
         &self.ws
     }
+
+    /// The covariance update form.
+    pub fn form(&self) -> UpdateForm {
+        self.form
+    }
+
+    /// `x̂(t|t−1), P(t|t−1)` of the current step t, also after its update (which leaves them
+    /// as they were). With `t`, the log-likelihood before the update and the update's data,
+    /// they determine everything the filter does next (see [`resume`](Self::resume)).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn prediction(&self) -> (&[f64], &[f64]) {
+        (self.ws.x_pred(), self.ws.p_pred())
+    }
+
+    /// The filter at step `t` before its update, from the [`prediction`](Self::prediction)
+    /// `x̂(t|t−1), P(t|t−1)` and the log-likelihood of the updates before t: it continues
+    /// bit for bit as the filter these came from (for pickling). P is not checked for
+    /// definiteness, which rounding may have touched in a long stream; it is symmetrized,
+    /// which leaves a filter's P(t|t−1) (exactly symmetric) as it is.
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn resume(
+        model: M,
+        x_pred: &[f64],
+        p_pred: &[f64],
+        form: UpdateForm,
+        t: usize,
+        loglik: f64,
+    ) -> Result<Self> {
+        let lg = model.borrow();
+        let (n, m, k, steps) = (lg.n_states(), lg.n_obs(), lg.n_inputs(), lg.steps());
+        for (arg, values, len) in [("x_pred", x_pred, n), ("P_pred", p_pred, n * n)] {
+            if values.len() != len {
+                return Err(Error::arg(arg, format!("expected {len} values (n = {n}), got {}", values.len())));
+            }
+            if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+                return Err(Error::arg(arg, format!("contains a non-finite value ({v})")));
+            }
+        }
+        if let Some(tm) = steps {
+            if t > tm {
+                return Err(Error::arg("t", format!("is {t}, past the {tm} steps of the model's per-step matrices")));
+            }
+        }
+        let ws = Workspace::new(Dyn { n, m }, k, x_pred, p_pred);
+        Ok(KalmanFilter { model, ws, form, t, updated: false, loglik })
+    }
+}
+
+/// A matrix given for one step ([`KalmanFilter::update_with`]): `rows × cols` finite values.
+fn check_step_matrix(arg: &'static str, values: &[f64], rows: usize, cols: usize, t: usize) -> Result<()> {
+    if values.len() != rows * cols {
+        return Err(Error::arg_at(arg, t, format!("expected {rows} × {cols} values, got {}", values.len())));
+    }
+    match values.iter().find(|v| !v.is_finite()) {
+        Some(v) => Err(Error::arg_at(arg, t, format!("contains a non-finite value ({v})"))),
+        None => Ok(()),
+    }
+}
+
+/// A symmetrized copy of the m × m `a`.
+fn symmetrized(a: &[f64], m: usize) -> Vec<f64> {
+    let mut sym = a.to_vec();
+    symmetrize(&mut sym, m);
+    sym
+}
+
+/// `Err(problem)` unless the joint covariance [[Q, N], [N', R]] of (w, v) is positive
+/// semidefinite (Q n × n, N n × m, R m × m).
+fn check_joint_psd(q: &[f64], nn: &[f64], r: &[f64], n: usize, m: usize) -> std::result::Result<(), String> {
+    let size = n + m;
+    let mut joint = vec![0.0; size * size];
+    for i in 0..n {
+        joint[i * size..i * size + n].copy_from_slice(&q[i * n..(i + 1) * n]);
+        for j in 0..m {
+            joint[i * size + n + j] = nn[i * m + j];
+            joint[(n + j) * size + i] = nn[i * m + j];
+        }
+    }
+    for i in 0..m {
+        joint[(n + i) * size + n..(n + i + 1) * size].copy_from_slice(&r[i * m..(i + 1) * m]);
+    }
+    check_psd(&joint, size).map_err(|p| format!("with the model's Q and N, [[Q, N], [N', R]] is {p}"))
 }

@@ -301,4 +301,31 @@ impl FixedLagSmoother {
     pub fn filter(&self) -> &KalmanFilter {
         &self.filter
     }
+
+    /// The past states (x̂(s|·), P(s|·), C) of the window, s = t, t−1, …: with the filter,
+    /// the whole state of the smoother (for pickling; see [`resume`](Self::resume)).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn window_state(&self) -> impl Iterator<Item = (&[f64], &[f64], &[f64])> {
+        self.window.slots[..self.window.len].iter().map(|s| (s.x.as_slice(), s.p.as_slice(), s.c.as_slice()))
+    }
+
+    /// The smoother with `filter` and the past states of [`window_state`](Self::window_state).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
+    pub(crate) fn resume(filter: KalmanFilter, lag: usize, window: &[(&[f64], &[f64], &[f64])]) -> Result<Self> {
+        let (n, m) = (filter.model().n_states(), filter.model().n_obs());
+        if window.len() > lag + 1 {
+            return Err(Error::arg("window", format!("has {} states, more than lag + 1 = {}", window.len(), lag + 1)));
+        }
+        let mut lag_window = LagWindow::new(n, m, lag);
+        for (slot, &(x, p, c)) in lag_window.slots.iter_mut().zip(window) {
+            if x.len() != n || p.len() != n * n || c.len() != n * n {
+                return Err(Error::arg("window", format!("expected states of n = {n} and covariances of n × n")));
+            }
+            slot.x.copy_from_slice(x);
+            slot.p.copy_from_slice(p);
+            slot.c.copy_from_slice(c);
+        }
+        lag_window.len = window.len();
+        Ok(FixedLagSmoother { filter, window: lag_window })
+    }
 }

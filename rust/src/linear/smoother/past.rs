@@ -22,7 +22,7 @@ use crate::linear::filter::step::LastUpdate;
 pub(crate) struct PastState {
     pub x: Vec<f64>,
     pub p: Vec<f64>,
-    c: Vec<f64>,
+    pub c: Vec<f64>,
 }
 
 /// Scratch buffers shared by all the past states of one smoother.

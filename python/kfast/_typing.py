@@ -1,0 +1,28 @@
+"""Type aliases of the public API, for annotations (and the stub of the compiled module): a
+misspelt option such as ``form="josef"`` then fails type checking, not only at run time."""
+
+from __future__ import annotations
+
+from typing import Iterable, Literal, Union
+
+__all__ = ["Form", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
+
+Form = Literal["joseph", "standard"]
+"""The covariance measurement update: Joseph's (I-KH)P(I-KH)' + KRK' or the standard P - KSK'."""
+
+DareMethod = Literal["doubling", "newton", "iteration", "eigen"]
+"""The algorithms of ``solve_discrete_are``."""
+
+FilterOutput = Literal["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"]
+"""The fields of ``FilterResult`` that ``filter(..., outputs=...)`` can select."""
+
+SmoothOutput = Union[FilterOutput, Literal["x_smooth", "P_smooth", "P_lag1"]]
+"""The fields ``smooth(..., outputs=...)`` can select: the smoother's and the filter's."""
+
+FilterOutputs = Union[FilterOutput, Iterable[FilterOutput], None]
+"""``outputs=``: one name, several, or None for all."""
+
+SmoothOutputs = Union[SmoothOutput, Iterable[SmoothOutput], None]
+
+EMParameter = Literal["F", "H", "Q", "R", "x0", "P0"]
+"""The parameters ``LinearGaussian.em`` can estimate."""
