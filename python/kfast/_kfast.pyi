@@ -12,6 +12,8 @@ from kfast._typing import DareMethod, Form
 # package converts array-likes first); the streaming objects take array-likes themselves.
 
 __version__: str
+# The filter's outputs: (name, shape in "T", "n", "m"), in FilterResult's order.
+FILTER_FIELDS: list[tuple[str, list[str]]]
 """Cargo.toml's version, compiled in."""
 
 class KfastError(ValueError):

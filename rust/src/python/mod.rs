@@ -232,11 +232,26 @@ fn outputs<'a>(names: &[&'static str], slices: &'a mut [&mut [f64]]) -> (FilterO
     (out, sm)
 }
 
+/// The letter of a dimension in the shapes exported to Python.
+fn dim_name(d: crate::linear::filter::Dim) -> &'static str {
+    use crate::linear::filter::Dim;
+    match d {
+        Dim::Steps => "T",
+        Dim::States => "n",
+        Dim::Outputs => "m",
+    }
+}
+
 #[pymodule]
 fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     // The one version: Cargo.toml's (pyproject.toml takes it too, as a dynamic field).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The filter's output names and shapes, from the one table of the crate (the Python
+    // FilterResult's fields are checked against it by the tests).
+    let fields: Vec<(&str, Vec<&str>)> =
+        FILTER_FIELDS.iter().map(|f| (f.name, f.shape.iter().map(|d| dim_name(*d)).collect())).collect();
+    m.add("FILTER_FIELDS", fields)?;
     m.add("KfastError", py.get_type::<KfastError>())?;
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
     m.add("NoStabilizingSolutionError", py.get_type::<NoStabilizingSolutionError>())?;

@@ -10,7 +10,7 @@ mod outputs;
 pub(crate) mod step;
 mod streaming;
 
-pub use outputs::{FilterOutputs, FilterResult, OutputField, FILTER_FIELDS};
+pub use outputs::{Dim, FilterOutputs, FilterResult, OutputField, FILTER_FIELDS};
 pub use step::UpdateForm;
 pub(crate) use step::Workspace;
 pub use streaming::KalmanFilter;

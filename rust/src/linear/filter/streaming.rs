@@ -40,22 +40,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// Measurement update with `y` (length m, NaN = missing); `u` is needed when the model has D.
     pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
-        let m = self.model().n_obs();
-        if y.len() != m {
-            return Err(
-                Error::arg("y", format!("expected {m} values (m = {m}), got {}", y.len())).at_step(Some(self.t))
-            );
-        }
-        check_observation(y, Some(self.t))?;
-        self.check_input(u, "D", self.model().matrices().d.is_some())?;
-        if self.updated {
-            return Err(Error::arg("y", "update called twice without a predict in between").at_step(Some(self.t)));
-        }
-        let sys = self.model.borrow().at(self.t);
-        self.ws.update(&sys, y, u, self.form, self.t)?;
-        self.loglik += self.ws.loglik_t();
-        self.updated = true;
-        Ok(())
+        self.update_with(y, u, None, None)
     }
 
     /// [`update`](Self::update) with this step's observation matrix `h` (m × n) and/or
@@ -65,9 +50,6 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// [[Q, N], [N', r]] too. The time update that follows uses the model's F, B, Q, N with the
     /// gains of this update.
     pub fn update_with(&mut self, y: &[f64], u: Option<&[f64]>, h: Option<&[f64]>, r: Option<&[f64]>) -> Result<()> {
-        if h.is_none() && r.is_none() {
-            return self.update(y, u);
-        }
         let (n, m, t) = (self.model().n_states(), self.model().n_obs(), self.t);
         if y.len() != m {
             return Err(Error::arg_at("y", t, format!("expected {m} values (m = {m}), got {}", y.len())));
