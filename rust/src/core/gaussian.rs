@@ -107,13 +107,9 @@ impl<D: Dims> GaussianUpdate<D> {
         let n = d.n();
         let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
         s_factor.copy_from_slice(&pred.innov_cov[..mo * mo]);
-        ldl(s_factor, mo).map_err(|j| Error::InnovationCovariance {
-            step: t,
-            problem: format!(
-                "not positive definite (pivot {j} of the {mo} observed components fails); \
-                 R may be singular where H P H' is too"
-            ),
-        })?;
+        if let Err(j) = ldl(s_factor, mo) {
+            return Err(not_positive_definite(t, j, mo));
+        }
         let s_factor = &self.s_factor.get()[..mo * mo];
         self.log_det = ldl_log_det(s_factor, mo);
         let s_inv_e = &mut self.s_inv_e.get_mut()[..mo];
@@ -227,5 +223,18 @@ impl<D: Dims> GaussianUpdate<D> {
     /// Sets the log-likelihood term (0 for a step with nothing observed).
     pub fn set_loglik_t(&mut self, v: f64) {
         self.loglik_t = v;
+    }
+}
+
+/// The error for an S whose pivot `j` failed (out of line: the time loop keeps only a branch).
+#[cold]
+#[inline(never)]
+fn not_positive_definite(t: usize, j: usize, mo: usize) -> Error {
+    Error::InnovationCovariance {
+        step: t,
+        problem: format!(
+            "not positive definite (pivot {j} of the {mo} observed components fails); \
+             R may be singular where H P H' is too"
+        ),
     }
 }
