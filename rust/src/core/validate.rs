@@ -78,3 +78,21 @@ pub(crate) fn check_prior(n: usize, x0: &[f64], p0: &[f64]) -> Result<()> {
     check_symmetric(p0, n).map_err(|p| Error::arg("P0", p))?;
     check_psd(p0, n).map_err(|p| Error::arg("P0", p))
 }
+
+/// `Err(problem)` unless the joint covariance `[[Q, N], [N', R]]` of (w, v) is positive
+/// semidefinite (Q n × n, N n × m, R m × m).
+pub(crate) fn check_joint_psd(q: &[f64], nn: &[f64], r: &[f64], n: usize, m: usize) -> std::result::Result<(), String> {
+    let size = n + m;
+    let mut joint = vec![0.0; size * size];
+    for i in 0..n {
+        joint[i * size..i * size + n].copy_from_slice(&q[i * n..(i + 1) * n]);
+        for j in 0..m {
+            joint[i * size + n + j] = nn[i * m + j];
+            joint[(n + j) * size + i] = nn[i * m + j];
+        }
+    }
+    for i in 0..m {
+        joint[(n + i) * size + n..(n + i + 1) * size].copy_from_slice(&r[i * m..(i + 1) * m]);
+    }
+    check_psd(&joint, size).map_err(|p| format!("[[Q, N], [N', R]] is {p}"))
+}

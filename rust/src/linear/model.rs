@@ -9,7 +9,7 @@
 //! leave: `F[t], B[t], Q[t], N[t]` take `x[t]` to `x[t+1]`; `H[t], D[t], R[t]` produce `y[t]`.
 //! The model is validated once, when it is built; the filters then trust it.
 
-use crate::core::validate::{check_psd, check_symmetric};
+use crate::core::validate::{check_joint_psd, check_psd, check_symmetric};
 use crate::error::{Error, Result};
 
 /// A matrix that is either constant over time or given per step (a stack of `steps` matrices),
@@ -231,7 +231,7 @@ impl LinearGaussian {
         mats.q.check_covariance("Q")?;
         mats.r.check_covariance("R")?;
         if let Some(nn) = &mats.n {
-            check_joint_psd(&mats.q, &mats.r, nn, steps.map(|s| s.1))?;
+            check_joint_psd_steps(&mats.q, &mats.r, nn, steps.map(|s| s.1))?;
         }
         Ok(LinearGaussian { mats, n_states: n, n_obs: m, n_inputs: k, steps: steps.map(|s| s.1) })
     }
@@ -291,30 +291,18 @@ impl LinearGaussian {
     }
 }
 
-/// The joint covariance `[[Q, N], [N', R]]` of `(w, v)` must be positive semidefinite.
-fn check_joint_psd(q: &StepMatrix, r: &StepMatrix, nn: &StepMatrix, steps: Option<usize>) -> Result<()> {
+/// The joint covariance `[[Q, N], [N', R]]` of `(w, v)` must be positive semidefinite at every
+/// step.
+fn check_joint_psd_steps(q: &StepMatrix, r: &StepMatrix, nn: &StepMatrix, steps: Option<usize>) -> Result<()> {
     let (n, m) = (q.rows, r.rows);
-    let size = n + m;
-    let mut joint = vec![0.0; size * size];
     let indices: Vec<Option<usize>> = match steps {
         None => vec![None],
         Some(t) => (0..t).map(Some).collect(),
     };
     for t in indices {
         let s = t.unwrap_or(0);
-        let (qs, rs, ns) = (q.at(s), r.at(s), nn.at(s));
-        for i in 0..n {
-            joint[i * size..i * size + n].copy_from_slice(&qs[i * n..(i + 1) * n]);
-            for j in 0..m {
-                joint[i * size + n + j] = ns[i * m + j];
-                joint[(n + j) * size + i] = ns[i * m + j];
-            }
-        }
-        for i in 0..m {
-            joint[(n + i) * size + n..(n + i + 1) * size].copy_from_slice(&rs[i * m..(i + 1) * m]);
-        }
-        check_psd(&joint, size)
-            .map_err(|p| Error::arg("N", format!("the joint noise covariance [[Q, N], [N', R]] is {p}")).at_step(t))?;
+        check_joint_psd(q.at(s), nn.at(s), r.at(s), n, m)
+            .map_err(|p| Error::arg("N", format!("the joint noise covariance {p}")).at_step(t))?;
     }
     Ok(())
 }

@@ -6,7 +6,9 @@ use std::sync::Arc;
 use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
 use crate::core::dims::Dyn;
-use crate::core::validate::{check_input_row, check_observation, check_prior, check_psd, check_symmetric};
+use crate::core::validate::{
+    check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
+};
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
 use crate::linear::validate::check_input_width;
@@ -71,7 +73,8 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
             r_sym = symmetrized(r, m);
             check_psd(&r_sym, m).map_err(|p| Error::arg_at("R", t, p))?;
             if let Some(nn) = sys.n {
-                check_joint_psd(sys.q, nn, &r_sym, n, m).map_err(|p| Error::arg_at("R", t, p))?;
+                check_joint_psd(sys.q, nn, &r_sym, n, m)
+                    .map_err(|p| Error::arg_at("R", t, format!("with the model's Q and N, {p}")))?;
             }
             sys.r = &r_sym;
         }
@@ -230,22 +233,4 @@ fn symmetrized(a: &[f64], m: usize) -> Vec<f64> {
     let mut sym = a.to_vec();
     symmetrize(&mut sym, m);
     sym
-}
-
-/// `Err(problem)` unless the joint covariance [[Q, N], [N', R]] of (w, v) is positive
-/// semidefinite (Q n × n, N n × m, R m × m).
-fn check_joint_psd(q: &[f64], nn: &[f64], r: &[f64], n: usize, m: usize) -> std::result::Result<(), String> {
-    let size = n + m;
-    let mut joint = vec![0.0; size * size];
-    for i in 0..n {
-        joint[i * size..i * size + n].copy_from_slice(&q[i * n..(i + 1) * n]);
-        for j in 0..m {
-            joint[i * size + n + j] = nn[i * m + j];
-            joint[(n + j) * size + i] = nn[i * m + j];
-        }
-    }
-    for i in 0..m {
-        joint[(n + i) * size + n..(n + i + 1) * size].copy_from_slice(&r[i * m..(i + 1) * m]);
-    }
-    check_psd(&joint, size).map_err(|p| format!("with the model's Q and N, [[Q, N], [N', R]] is {p}"))
 }
