@@ -19,13 +19,13 @@ import kfast
 
 MODULES = [
     "kfast",
-    "kfast._model",
+    "kfast.linear.model",
     "kfast._kfast",
-    "kfast.batch",
-    "kfast.estimation",
+    "kfast.linear.batch",
+    "kfast.linear.estimation",
     "kfast.sampling",
-    "kfast.solvers",
-    "kfast.stationary",
+    "kfast.riccati.solvers",
+    "kfast.riccati.stationary",
     "kfast.models",
 ]
 

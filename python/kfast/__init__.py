@@ -21,7 +21,7 @@ from kfast._kfast import (
     NoStabilizingSolutionError,
     __version__,
 )
-from kfast._model import (
+from kfast.linear.model import (
     FilterResult,
     FixedLagResult,
     FixedPointResult,
@@ -31,11 +31,11 @@ from kfast._model import (
     SmootherResult,
 )
 
-from kfast.batch import BatchResult, filter_batch
-from kfast.estimation import EMResult, FitResult, fit
+from kfast.linear.batch import BatchResult, filter_batch
+from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
-from kfast.stationary import InnovationsForm, SteadyState
-from kfast.solvers import (
+from kfast.riccati.stationary import InnovationsForm, SteadyState
+from kfast.riccati.solvers import (
     solve_continuous_are,
     solve_continuous_lyapunov,
     solve_discrete_are,

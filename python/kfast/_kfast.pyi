@@ -5,7 +5,7 @@ from typing import Any, Optional, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kfast._model import LinearGaussian as _Model
+from kfast.linear.model import LinearGaussian as _Model
 from kfast._typing import DareMethod, Form
 
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the

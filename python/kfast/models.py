@@ -38,7 +38,7 @@ import numpy as np
 
 from kfast import _kfast
 from kfast._arrays import as_float64
-from kfast._model import LinearGaussian
+from kfast.linear.model import LinearGaussian
 from kfast.sampling import discretize
 
 __all__ = [

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
-from kfast.solvers import _matrix, care
+from kfast.riccati.solvers import _matrix, care
 
 __all__ = ["expm", "discretize", "Discretized", "kalman_bucy", "KalmanBucy", "intervals", "stationary_cov_continuous"]
 
@@ -193,7 +193,7 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     >>> print(kfast.stationary_cov_continuous(-1.0, 1.0))
     [[0.5]]
     """
-    from kfast.solvers import solve_continuous_lyapunov
+    from kfast.riccati.solvers import solve_continuous_lyapunov
 
     A, Qc = _matrix("A", A), _matrix("Qc", Qc)
     top = float(np.linalg.eigvals(A).real.max())

@@ -17,7 +17,7 @@ import pytest
 import scipy.linalg as sl
 
 import kfast
-from kfast.solvers import dare
+from kfast.riccati.solvers import dare
 
 CASES = json.loads((Path(__file__).parent.parent / "data" / "dare_cross_term.json").read_text())
 METHODS = ["doubling", "newton", "iteration", "eigen"]

@@ -8,7 +8,7 @@ import scipy.linalg as sl
 import slycot  # noqa: F401  (python-control uses it for dare/care with S and E)
 
 import kfast
-from kfast.solvers import care, dare
+from kfast.riccati.solvers import care, dare
 
 METHODS = ["doubling", "newton", "iteration", "eigen"]
 

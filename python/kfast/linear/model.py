@@ -13,8 +13,8 @@ from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
 if TYPE_CHECKING:
-    from kfast.estimation import EMResult
-    from kfast.stationary import InnovationsForm, SteadyState
+    from kfast.linear.estimation import EMResult
+    from kfast.riccati.stationary import InnovationsForm, SteadyState
 
 __all__ = [
     "LinearGaussian",
@@ -550,7 +550,7 @@ class LinearGaussian:
         >>> print(ss.closed_loop_eigenvalues.real.round(8))
         [0.4]
         """
-        from kfast.stationary import steady_state
+        from kfast.riccati.stationary import steady_state
 
         return steady_state(self, method=method)
 
@@ -575,7 +575,7 @@ class LinearGaussian:
         >>> print(inn.K_pred.round(8), inn.S.round(8))
         [[0.4]] [[2.]]
         """
-        from kfast.stationary import innovations_form
+        from kfast.riccati.stationary import innovations_form
 
         return innovations_form(self)
 
@@ -599,7 +599,7 @@ class LinearGaussian:
         >>> print(kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0).stationary_cov().round(6))
         [[1.888889]]
         """
-        from kfast.stationary import stationary_cov
+        from kfast.riccati.stationary import stationary_cov
 
         return stationary_cov(self)
 
@@ -633,7 +633,7 @@ class LinearGaussian:
         >>> print(model.autocovariance([0, 1, 2])[:, 0, 0].round(6))
         [2.888889 1.511111 1.208889]
         """
-        from kfast.stationary import autocovariance
+        from kfast.riccati.stationary import autocovariance
 
         return autocovariance(self, lags)
 
@@ -671,7 +671,7 @@ class LinearGaussian:
         >>> print(model.spectral_density([0.0, np.pi])[:, 0, 0].real.round(6))
         [18.        1.209877]
         """
-        from kfast.stationary import spectral_density
+        from kfast.riccati.stationary import spectral_density
 
         return spectral_density(self, omega, h=h)
 
@@ -986,7 +986,7 @@ class LinearGaussian:
         >>> res.n_iter, bool(np.all(np.diff(res.loglik) >= -1e-9))
         (20, True)
         """
-        from kfast.estimation import em
+        from kfast.linear.estimation import em
 
         return em(self, y, x0, P0, n_iter=n_iter, fit=fit, u=u, tol=tol, progress=progress)
 

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 
 from kfast._arrays import as_float64
 from kfast._kfast import KfastError
-from kfast._model import LinearGaussian
+from kfast.linear.model import LinearGaussian
 from kfast._typing import EMParameter
 
 __all__ = ["fit", "FitResult", "em", "EMResult"]
@@ -230,7 +230,7 @@ def em(
     Examples
     --------
     >>> model = kfast.LinearGaussian(F=0.5, H=1.0, Q=1.0, R=1.0)
-    >>> res = kfast.estimation.em(model, [0.3, -0.1, 0.7, 1.2], x0=0.0, P0=1.0, n_iter=3)
+    >>> res = kfast.linear.estimation.em(model, [0.3, -0.1, 0.7, 1.2], x0=0.0, P0=1.0, n_iter=3)
     >>> res.n_iter, len(res.loglik)
     (3, 4)
     """

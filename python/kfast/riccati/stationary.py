@@ -20,10 +20,10 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._arrays import as_float64
 from kfast._typing import DareMethod
-from kfast.solvers import dare
+from kfast.riccati.solvers import dare
 
 if TYPE_CHECKING:
-    from kfast._model import LinearGaussian
+    from kfast.linear.model import LinearGaussian
 
 __all__ = ["SteadyState", "InnovationsForm"]
 

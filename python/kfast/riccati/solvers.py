@@ -97,7 +97,7 @@ def solve_discrete_are(
     eigenvectors of the extended pencil of size 2n + m (no inverse of r or a needed), and
     raises only when these find none either (a fallback's closed loop must stay 1e-8 inside
     the unit circle). The fallbacks cost nothing when the method succeeds.
-    :func:`kfast.solvers.dare` also returns the gain, the closed-loop eigenvalues, the residual
+    :func:`kfast.riccati.solvers.dare` also returns the gain, the closed-loop eigenvalues, the residual
     and the iterations.
 
     Examples

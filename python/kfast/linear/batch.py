@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
-from kfast._model import LinearGaussian, _form
+from kfast.linear.model import LinearGaussian, _form
 from kfast._typing import Form
 
 __all__ = ["filter_batch", "BatchResult"]
