@@ -11,16 +11,16 @@ Binary files are skipped. Standard library only.
 The rules, kept simple on purpose:
 
 1. Paths. A token that starts with a top-level directory of the repository (docs/, rust/,
-   python/, tests/, benches/, .ci/), with shared/ or with ../, or that names a Markdown file
+   python/, tests/, benches/, .ci/) or with ../, or that names a Markdown file
    (ends in .md), is a path. Surrounding punctuation is stripped and a #anchor split off. It
    resolves if it is a tracked file, or a directory holding one, relative to the repository
    root or to the citing file's directory; a `*` matches like a shell glob.
 2. Headings. `file.md#anchor` needs a heading of file.md whose GitHub anchor is `anchor`
    (lower case, punctuation dropped, spaces to hyphens). A heading quoted right after a
    Markdown path, as in `docs/algorithms.md, "Doubling"`, needs a heading with that text.
-3. Notes outside the repository. The names ALGORITHMS, TEXTBOOK_CASES, WORKLOADS and
-   DESIGN.md, and the section sign §, always fail: they cite the team's private notes, which
-   users never see. Cite the textbook equation or a heading of docs/ instead.
+3. Numbered sections. The section sign § always fails: the project's docs are cited by
+   heading (rule 2) and textbooks by equation number, so a § can only point into notes that
+   are not part of the repository, which users never see.
 
 Not references: URLs (`scheme://...`), dotted names (kfast.models, np.linalg), absolute paths
 (/tmp/x), a path that continues a longer word (src/rust/x), patterns with a <placeholder>
@@ -52,7 +52,7 @@ IGNORE_MARK = "check-references: ignore"
 # Files a move in progress will create (planned file -> where its content is now).
 PLANNED: dict[str, str] = {}
 
-ROOTS = ("docs", "rust", "python", "tests", "benches", ".ci", "shared")
+ROOTS = ("docs", "rust", "python", "tests", "benches", ".ci")
 _CHARS = r"[\w.\-/*]"
 PATH_RE = re.compile(
     r"(?<![\w./\-])("
@@ -62,7 +62,7 @@ PATH_RE = re.compile(
     r")(#[\w\-]+)?"
 )
 QUOTED_HEADING_RE = re.compile(r"(?<![\w./\-])(" + _CHARS + r"+\.md)(?:#[\w\-]+)?,\s*\"([^\"]+)\"")
-OUTSIDE_RE = re.compile(r"\b(ALGORITHMS|TEXTBOOK_CASES|WORKLOADS)\b|\bDESIGN\.md\b|§")
+OUTSIDE_RE = re.compile(r"§")
 URL_RE = re.compile(r"\b[a-z][a-z0-9+.\-]*://\S*")
 HEADING_RE = re.compile(r"^ {0,3}#{1,6}\s+(.*?)\s*#*\s*$")
 SKIP_DIRS = {"target", "dist", "build", "__pycache__", "node_modules"}
@@ -168,7 +168,7 @@ def problems_in_line(repo: Repository, citing: str, line: str):
     text = URL_RE.sub(" ", line)
     outside = [m.span() for m in OUTSIDE_RE.finditer(text)]
     for start, end in outside:
-        yield text[start:end], "cites notes outside the repository (cite the textbook or docs/ instead)"
+        yield text[start:end], "cites a numbered section of notes outside the repository (cite the textbook or a docs/ heading instead)"
     for m in PATH_RE.finditer(text):
         if any(start < m.end() and m.start() < end for start, end in outside):
             continue  # reported above

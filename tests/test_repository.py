@@ -45,7 +45,7 @@ def test_planted_bad_references_are_reported_by_file_and_line(tmp_path):
 
                 Cites docs/missing.md, "Doubling" of docs/guide.md, "Doubling".
                 Cites docs/guide.md#no-such-heading and docs/guide.md, "No such heading".
-                See ../shared/ALGORITHMS.md, ../shared/acceptance/ and rust/src/gone.rs.
+                See ../notes/private.md, ../notes/cases/ and rust/src/gone.rs.
                 '''
                 import numpy as np  # np.linalg and kfast.models are module names, not files
                 URL = "https://example.com/docs/missing.md"
@@ -53,7 +53,7 @@ def test_planted_bad_references_are_reported_by_file_and_line(tmp_path):
             "tests/test_x.py": """\
                 # docs/guide.md, tests/test_x.py and the directory python/pkg/ exist.
                 # A pattern: tests/test_<family>.py.
-                # The notes live in WORKLOADS, cited by section §3.
+                # The private notes, cited by section §3.
                 """,
         },
     )
@@ -65,10 +65,9 @@ def test_planted_bad_references_are_reported_by_file_and_line(tmp_path):
             "python/pkg/mod.py:3: docs/missing.md",
             "python/pkg/mod.py:4: docs/guide.md#no-such-heading",
             'python/pkg/mod.py:4: docs/guide.md, "No such heading"',
-            "python/pkg/mod.py:5: ALGORITHMS",
-            "python/pkg/mod.py:5: ../shared/acceptance/",
+            "python/pkg/mod.py:5: ../notes/private.md",
+            "python/pkg/mod.py:5: ../notes/cases/",
             "python/pkg/mod.py:5: rust/src/gone.rs",
-            "tests/test_x.py:3: WORKLOADS",
             "tests/test_x.py:3: §",
         ]
     ), result.stdout
@@ -80,7 +79,7 @@ def test_clean_files_pass_and_ignore_mark_skips_a_line(tmp_path):
         {
             "README.md": "# Read me\n\nSee docs/a.md, \"Section\" and [a](docs/a.md#section).\n",
             "docs/a.md": "# A\n\n## Section\n\nBack to [the README](../README.md).\n",
-            "notes.py": "# cites DESIGN.md on purpose  (check-references: ignore)\n",
+            "notes.py": "# cites ../notes/private.md on purpose  (check-references: ignore)\n",
         },
     )
     result = run_check("--root", str(tmp_path), *files)
