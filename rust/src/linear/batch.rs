@@ -207,9 +207,9 @@ fn means_only_all<D: Dims>(
     rows.for_each_init(
         || Workspace::new(d, model.n_inputs(), &vec![0.0; n], b.p0),
         |ws, (s, (x_out, ll))| {
-            let (y, u, x0, _) = series_parts(model, b, s);
-            ws.set_state(x0, b.p0);
-            let run = Run { model, y, u, form: b.form };
+            let (y, u, x0, p0) = series_parts(model, b, s);
+            ws.set_state(x0, p0);
+            let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None };
             *ll = run.means_only(ws, gains, x_out);
         },
     );
@@ -243,10 +243,10 @@ fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Res
     out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).zip(covs).enumerate().try_for_each(
         |(s, ((x_out, ll), p_out))| -> Result<()> {
             let (y, u, x0, p0) = series_parts(model, b, s);
-            let run = Run { model, y, u, form: b.form };
+            let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None };
             let mut o = FilterOutputs::default();
             (o.x_filt, o.p_filt) = (Some(x_out), p_out);
-            *ll = with_dims!(n, m, |d| run.filter(d, x0, p0, None, &mut o)).map_err(|e| prefix_series(e, s))?;
+            *ll = with_dims!(n, m, |d| run.filter(d, &mut o)).map_err(|e| prefix_series(e, s))?;
             Ok(())
         },
     )

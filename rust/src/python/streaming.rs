@@ -381,7 +381,7 @@ impl PyKalmanFilter {
         R: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.update(py, y, u, H, R)?;
-        with_step_data(py, None, u, |_, u| self.inner.predict(u))
+        self.predict(py, u)
     }
 
     /// Pickling: the constructor's arguments and the state (see `__setstate__`).

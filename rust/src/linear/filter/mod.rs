@@ -86,8 +86,8 @@ pub fn filter_into(
     let steps = check_data(model, y, u, x0, p0)?;
     out.check_sizes(steps, n, m)?;
     let converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let run = Run { model, y, u, form: options.form };
-    with_dims!(n, m, |d| run.filter(d, x0, p0, converge_tol, &mut out))
+    let run = Run { model, y, u, x0, p0, form: options.form, converge_tol };
+    with_dims!(n, m, |d| run.filter(d, &mut out))
 }
 
 /// The log-likelihood `Σ_t log p(y(t) | y(0..t−1))` alone (Söderström (6.142)), without
@@ -103,13 +103,17 @@ pub fn loglik(
     filter_into(model, y, u, x0, p0, options, FilterOutputs::default())
 }
 
-/// One pass of the filter over the data (validated already).
+/// One pass of the filter over the data from the prior `(x0, p0)` (all validated already).
 #[derive(Clone, Copy)]
 pub(crate) struct Run<'a> {
     pub model: &'a LinearGaussian,
     pub y: Series<'a>,
     pub u: Option<Series<'a>>,
+    pub x0: &'a [f64],
+    pub p0: &'a [f64],
     pub form: UpdateForm,
+    /// Freeze the gains once converged (see [`FilterOptions::converge_tol`]).
+    pub converge_tol: Option<f64>,
 }
 
 /// A constant model's F, H, Q, R and N copied once into buffers of the call's sizes (local
@@ -160,47 +164,26 @@ impl Run<'_> {
     /// log-likelihood. On x86-64 CPUs with AVX2 the same code is compiled a second time for
     /// them and chosen at run time (no fused multiply-adds, no reordered sums: results are the
     /// same bits).
-    pub(crate) fn filter<D: Dims>(
-        &self,
-        d: D,
-        x0: &[f64],
-        p0: &[f64],
-        converge_tol: Option<f64>,
-        out: &mut FilterOutputs<'_>,
-    ) -> Result<f64> {
+    pub(crate) fn filter<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.filter_avx2(d, x0, p0, converge_tol, out) };
+            return unsafe { self.filter_avx2(d, out) };
         }
-        self.filter_steps(d, x0, p0, converge_tol, out)
+        self.filter_steps(d, out)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn filter_avx2<D: Dims>(
-        &self,
-        d: D,
-        x0: &[f64],
-        p0: &[f64],
-        converge_tol: Option<f64>,
-        out: &mut FilterOutputs<'_>,
-    ) -> Result<f64> {
-        self.filter_steps(d, x0, p0, converge_tol, out)
+    unsafe fn filter_avx2<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
+        self.filter_steps(d, out)
     }
 
     /// The workspace lives here, on this function's stack, for the whole loop.
     #[inline(always)]
-    fn filter_steps<D: Dims>(
-        &self,
-        d: D,
-        x0: &[f64],
-        p0: &[f64],
-        converge_tol: Option<f64>,
-        out: &mut FilterOutputs<'_>,
-    ) -> Result<f64> {
-        let mut ws = Workspace::new(d, self.model.n_inputs(), x0, p0);
-        ws.configure(out.gain.is_some(), out.gain_pred.is_some(), converge_tol);
+    fn filter_steps<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
+        let mut ws = Workspace::new(d, self.model.n_inputs(), self.x0, self.p0);
+        ws.configure(out.gain.is_some(), out.gain_pred.is_some(), self.converge_tol);
         let total = if self.model.steps().is_none() {
             let first = self.model.at(0);
             let local = LocalMatrices::new(d, &first);
