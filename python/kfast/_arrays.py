@@ -1,8 +1,11 @@
 """Conversion of user input to the float64 arrays the compiled core reads.
 
-The one place where array-likes (lists, ints, float32, Fortran-ordered or strided arrays)
-become C-contiguous float64. Complex and non-numeric input is refused with a message naming
-the argument. The result may share memory with the input, which the core never writes to.
+The one place where array-likes (lists, ints, float32, Fortran-ordered or strided arrays,
+pandas objects) become C-contiguous float64. Complex and non-numeric input is refused with a
+message naming the argument. NumPy masked arrays: a masked observation (``y``, ``Y``) is a
+missing value, as in statsmodels, and becomes NaN; masked entries anywhere else are refused
+(a matrix, prior or input has no "missing" meaning). The result may share memory with the
+input, which the core never writes to.
 """
 
 from __future__ import annotations
@@ -12,8 +15,14 @@ import numpy as np
 from kfast._kfast import KfastError
 
 
+# The arguments whose masked entries mean "missing" (NaN).
+_OBSERVATIONS = ("y", "Y")
+
+
 def as_float64(name: str, value: object) -> np.ndarray:
     """``value`` as a C-contiguous float64 array; ``KfastError`` (a ValueError) otherwise."""
+    if isinstance(value, np.ma.MaskedArray):
+        value = _unmask(name, value)
     try:
         arr = np.asarray(value)
     except Exception as exc:  # ragged lists and the like
@@ -34,3 +43,18 @@ def frozen_copy(name: str, value: object, scalar_shape: tuple = ()) -> np.ndarra
         arr = arr.reshape(scalar_shape)
     arr.setflags(write=False)
     return arr
+
+
+def _unmask(name: str, value: np.ma.MaskedArray) -> np.ndarray:
+    """The data of a masked array with masked observations as NaN (a new array)."""
+    mask = np.ma.getmaskarray(value)
+    if not mask.any():
+        return np.ma.getdata(value)
+    if name not in _OBSERVATIONS:
+        raise KfastError(
+            f"{name}: has {int(mask.sum())} masked entries; only observations (y) may be masked (missing values)"
+        )
+    data = np.ma.getdata(value)
+    if data.dtype.kind not in "fiu":
+        raise KfastError(f"{name}: expected real numbers, got dtype {data.dtype}")
+    return np.where(mask, np.nan, data.astype(np.float64))

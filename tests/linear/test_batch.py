@@ -76,13 +76,13 @@ def test_batch_bad_input():
         kfast.filter_batch(model, np.zeros((5, 2)), x0, P0)
     with pytest.raises(kfast.KfastError, match=r"^Y: expected shape \(B, T, 2\)"):
         kfast.filter_batch(model, np.zeros((5, 3, 3)), x0, P0)
-    with pytest.raises(kfast.KfastError, match=r"^x0: expected shape \(4,\) or \(5, 4\)"):
+    with pytest.raises(kfast.KfastError, match=r"^x0: expected shape \(4,\) \(shared\) or \(5, 4\)"):
         kfast.filter_batch(model, np.zeros((5, 3, 2)), np.zeros((4, 4)), P0)
     with pytest.raises(kfast.KfastError, match=r"^Y at step 1: \(series 2\) component 0 is inf"):
         Y = np.zeros((5, 3, 2))
         Y[2, 1, 0] = np.inf
         kfast.filter_batch(model, Y, x0, P0)
-    with pytest.raises(kfast.KfastError, match=r"^threads: expected a positive integer"):
+    with pytest.raises(kfast.KfastError, match=r"^threads: must be >= 1"):
         kfast.filter_batch(model, np.zeros((5, 3, 2)), x0, P0, threads=0)
     with pytest.raises(kfast.KfastError, match=r"^P0: \(series 0\) not positive semidefinite"):
         kfast.filter_batch(model, np.zeros((5, 3, 2)), x0, -np.eye(4))

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast import _kfast
+from kfast._args import flag, index
 from kfast._arrays import as_float64
 from kfast.linear.model import LinearGaussian, _form
 from kfast._typing import Form
@@ -63,7 +64,7 @@ def filter_batch(
     return_covs : bool
         Whether to return P(t|t).
     threads : int, optional
-        Number of threads (default: all cores).
+        Number of threads (default: all cores); never more than the series or the cores.
     form : {"joseph", "standard"}
         The covariance update, as in :meth:`LinearGaussian.filter`.
 
@@ -97,6 +98,8 @@ def filter_batch(
     >>> print(res.x_filt[0, :, 0].round(4))
     [0.15  0.01  0.354]
     """
+    if not isinstance(model, LinearGaussian):
+        raise _kfast.KfastError(f"model: expected a kfast.LinearGaussian, got {type(model).__name__}")
     Y = as_float64("Y", Y)
     if Y.ndim == 2 and model.n_obs == 1:
         Y = Y[:, :, None]
@@ -116,8 +119,11 @@ def filter_batch(
         u = as_float64("u", u)
         if u.ndim not in (2, 3):
             raise _kfast.KfastError(f"u: expected shape (T, k) or (B, T, k), got {u.shape}")
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1):
-        raise _kfast.KfastError(f"threads: expected a positive integer, got {threads!r}")
+    if threads is not None:
+        if index("threads", threads) < 1:
+            raise _kfast.KfastError(f"threads: must be >= 1, got {threads!r}")
+        threads = min(int(threads), Y.shape[0])  # never more threads than series (nor cores)
+    return_covs = flag("return_covs", return_covs)
     out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_form(form))
     P = out.get("P_filt")
     if P is not None and out["shared"]:

@@ -14,6 +14,7 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from kfast._args import flag, tolerance
 from kfast._arrays import as_float64
 from kfast._kfast import KfastError
 from kfast.linear.model import LinearGaussian
@@ -214,6 +215,19 @@ class EMResult:
 EM_PARAMETERS: tuple[EMParameter, ...] = ("F", "H", "Q", "R", "x0", "P0")
 
 
+def _em_parameters(fit) -> tuple:
+    """``fit=`` as a tuple of parameter names (one name may be given alone)."""
+    names = (fit,) if isinstance(fit, str) else fit
+    try:
+        names = tuple(names)
+    except TypeError:
+        raise KfastError(f"fit: expected a sequence of parameter names from {EM_PARAMETERS}, got {fit!r}") from None
+    unknown = [name for name in names if name not in EM_PARAMETERS]
+    if unknown:
+        raise KfastError(f"fit: unknown parameters {unknown}; choose from {EM_PARAMETERS}")
+    return names
+
+
 def em(
     model: LinearGaussian,
     y: ArrayLike,
@@ -234,41 +248,43 @@ def em(
     >>> res.n_iter, len(res.loglik)
     (3, 4)
     """
-    fit = tuple(fit)
-    unknown = set(fit) - set(EM_PARAMETERS)
-    if unknown:
-        raise KfastError(f"fit: unknown parameters {sorted(unknown)}; choose from {EM_PARAMETERS}")
+    fit = _em_parameters(fit)
     if model.steps is not None:
         raise KfastError("model: EM needs constant matrices (this model has per-step ones)")
     if model.N is not None:
         raise KfastError("model: EM does not support correlated noise N")
     if isinstance(n_iter, bool) or not isinstance(n_iter, (int, np.integer)) or n_iter < 0:
         raise KfastError(f"n_iter: expected an integer >= 0, got {n_iter!r}")
+    tol = tolerance("tol", tol)
+    progress = flag("progress", progress)
     y, x0, P0, u = model._data(y, x0, P0, u)
     F, H, Q, R = (np.array(a) for a in (model.F, model.H, model.Q, model.R))
     B, D = model.B, model.D
+
+    def e_step(F, H, Q, R, x0, P0):
+        return LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u, outputs=("x_smooth", "P_smooth", "P_lag1"))
+
+    sm = e_step(F, H, Q, R, x0, P0)  # first, so that the core validates y, x0, P0 and u
     x0 = np.array(x0, dtype=float).reshape(model.n_states)  # copies: EM updates them
     P0 = np.array(P0, dtype=float).reshape(model.n_states, model.n_states)
     T = len(y)
     a = np.zeros((T, model.n_states)) if B is None else u @ B.T  # transition offsets B u(t)
     d = np.zeros((T, model.n_obs)) if D is None else u @ D.T  # observation offsets D u(t)
 
-    history = []  # log-likelihood of the parameters entering each iteration
+    history = [sm.filter.loglik]  # log-likelihood of the parameters entering each iteration
     converged = False
     iterations = 0
     while iterations < n_iter:
-        sm = LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u, outputs=("x_smooth", "P_smooth", "P_lag1"))
-        history.append(sm.filter.loglik)
-        if progress:
-            print(f"\rEM {iterations + 1}/{n_iter}  loglik {history[-1]:.6f}", end="", file=sys.stderr, flush=True)
-        if tol is not None and len(history) > 1 and abs(history[-1] - history[-2]) <= tol * max(1.0, abs(history[-1])):
-            converged = True
-            break
         F, H, Q, R, x0, P0 = _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit)
         iterations += 1
+        sm = e_step(F, H, Q, R, x0, P0)
+        history.append(sm.filter.loglik)
+        if progress:
+            print(f"\rEM {iterations}/{n_iter}  loglik {history[-1]:.6f}", end="", file=sys.stderr, flush=True)
+        if tol is not None and abs(history[-1] - history[-2]) <= tol * max(1.0, abs(history[-1])):
+            converged = True
+            break
     final = LinearGaussian(F, H, Q, R, B=B, D=D)
-    if not converged:
-        history.append(final.loglik(y, x0, P0, u=u))
     if progress:
         print(file=sys.stderr)
     return EMResult(

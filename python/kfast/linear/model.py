@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast import _kfast
+from kfast._args import choice, flag, index, tolerance
 from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
@@ -463,7 +464,7 @@ class LinearGaussian:
         >>> model.filter([0.3, np.nan, 0.7], 0.0, 1.0, outputs="x_filt").P_filt is None
         True
         """
-        if steady_state:
+        if flag("steady_state", steady_state):
             if converge_tol is not None:
                 raise _kfast.KfastError("converge_tol: not used with steady_state=True (the gains are constant from the start)")
             P0 = self.steady_state().P_pred
@@ -472,7 +473,7 @@ class LinearGaussian:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
         names = _output_names(outputs)
-        out = self._core.filter(*args, form=_form(form), converge_tol=_tolerance(converge_tol), outputs=names)
+        out = self._core.filter(*args, form=_form(form), converge_tol=tolerance("converge_tol", converge_tol), outputs=names)
         return FilterResult(**out, model=self)
 
     def loglik(
@@ -508,7 +509,7 @@ class LinearGaussian:
         >>> print(round(model.loglik([0.3, -0.1, 0.7], x0=0.0, P0=1.0), 4))
         -3.9509
         """
-        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=_tolerance(converge_tol))
+        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=tolerance("converge_tol", converge_tol))
 
     def steady_state(self, method: DareMethod = "doubling") -> "SteadyState":
         """The stationary Kalman filter of a constant model.
@@ -777,7 +778,7 @@ class LinearGaussian:
         0.6875
         """
         y, x0, P0, u = self._data(y, x0, P0, u)
-        out = self._core.smooth_fixed_lag(y, x0, P0, _index("lag", lag), u=u, form=_form(form))
+        out = self._core.smooth_fixed_lag(y, x0, P0, index("lag", lag), u=u, form=_form(form))
         return FixedLagResult(lag=int(lag), **out)
 
     def smooth_fixed_point(
@@ -824,7 +825,7 @@ class LinearGaussian:
         >>> print(res.P[:4, 0, 0].round(6))
         [1.       0.75     0.6875   0.671875]
         """
-        t_point = _index("t_point", t_point)
+        t_point = index("t_point", t_point)
         y, x0, P0, u = self._data(y, x0, P0, u)
         out = self._core.smooth_fixed_point(y, x0, P0, t_point, u=u, form=_form(form))
         return FixedPointResult(t_point=t_point, **out)
@@ -867,7 +868,7 @@ class LinearGaussian:
         >>> print(fc.y_cov[:, 0, 0].round(4))
         [2.     2.32   2.5248 2.6559]
         """
-        steps = _index("steps", steps)
+        steps = index("steps", steps)
         x, P = self._prior(x, P, names=("x", "P"))
         if u is not None:
             u = _column_if_1d(as_float64("u", u), self.n_inputs)
@@ -918,14 +919,17 @@ class LinearGaussian:
         >>> bool(np.array_equal(y, model.simulate(100, x0=0.0, P0=1.0, seed=1).y))
         True
         """
-        T = _index("T", T)
+        T = index("T", T)
         if T == 0:
             raise _kfast.KfastError("T: must be >= 1, got 0")
         if self.steps is not None and T != self.steps:
             raise _kfast.KfastError(f"T: is {T} but the model's per-step matrices have {self.steps} steps")
-        y_dummy, x0, P0, u = self._data(np.zeros((T, self.n_obs)), x0, P0, u)
-        rng = np.random.default_rng(seed)
         n, m = self.n_states, self.n_obs
+        _kfast.check_alloc("T", [[T, n + m], [T, n + m], [T, n], [T, m], [T, n], [T, m]])
+        x0, P0 = self._prior(x0, P0)
+        self._core.check_prior(x0, P0)
+        u = None if u is None else _column_if_1d(as_float64("u", u), self.n_inputs)
+        rng = _generator(seed)
         x_init = _psd_sqrt(P0) @ rng.standard_normal(n) + x0
         z = rng.standard_normal((T, n + m))
         wv = np.einsum("...ij,...j->...i", _psd_sqrt(self._joint_noise_cov()), z)
@@ -1023,6 +1027,14 @@ class LinearGaussian:
 _STEADY_STATE_TOL = 1e-10
 
 
+def _generator(seed) -> np.random.Generator:
+    """``seed`` as NumPy's ``default_rng`` reads it; a clear error naming ``seed`` otherwise."""
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError) as exc:
+        raise _kfast.KfastError(f"seed: expected None, a non-negative integer or a numpy.random.Generator ({exc})") from None
+
+
 def _psd_sqrt(C: np.ndarray) -> np.ndarray:
     """A square root L with L L' = C for symmetric PSD C (or a stack), via the eigenvalues so
     that singular covariances (e.g. Q = 0, or a singular joint [[Q, N], [N', R]]) work."""
@@ -1035,36 +1047,19 @@ def _column_if_1d(a: np.ndarray, width: int) -> np.ndarray:
     return a[:, None] if a.ndim == 1 and width == 1 else a
 
 
-def _tolerance(value) -> Optional[float]:
-    if value is None:
-        return None
-    tol = float(value)
-    if not tol >= 0:
-        raise _kfast.KfastError(f"converge_tol: must be >= 0, got {value!r}")
-    return tol
-
-
 def _output_names(outputs) -> Optional[list[str]]:
     """``outputs=``: None (everything), one name, or an iterable of names."""
     if outputs is None:
         return None
-    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    try:
+        names = [outputs] if isinstance(outputs, str) else list(outputs)
+    except TypeError:
+        raise _kfast.KfastError(f"outputs: expected a field name or an iterable of names, got {outputs!r}") from None
     bad = [name for name in names if not isinstance(name, str)]
     if bad:
         raise _kfast.KfastError(f"outputs: expected field names (str), got {bad[0]!r}")
     return names
 
 
-def _index(name: str, value) -> int:
-    """An integer argument (lag, t_point, steps): Python or NumPy integers only."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise _kfast.KfastError(f"{name}: expected an integer, got {value!r}")
-    if value < 0:
-        raise _kfast.KfastError(f"{name}: must be >= 0, got {value}")
-    return int(value)
-
-
 def _form(form: str) -> Form:
-    if form not in _FORMS:
-        raise _kfast.KfastError(f"form: expected one of {_FORMS}, got {form!r}")
-    return cast(Form, form)
+    return cast(Form, choice("form", form, _FORMS))

@@ -1,6 +1,7 @@
 //! The model-agnostic core shared by every family: small dense kernels, compile-time and
-//! run-time sizes, validators, faer bridging and the real Schur form.
+//! run-time sizes, validators, allocation-size checks, faer bridging and the real Schur form.
 
+pub(crate) mod alloc;
 pub(crate) mod dense;
 pub(crate) mod dims;
 pub(crate) mod gaussian;

@@ -13,7 +13,7 @@ pub struct Series<'a> {
 impl<'a> Series<'a> {
     /// Wraps `data` as `steps` rows of `width` numbers; `arg` names it in errors.
     pub fn new(arg: &'static str, data: &'a [f64], steps: usize, width: usize) -> Result<Self> {
-        if data.len() != steps * width {
+        if steps.checked_mul(width) != Some(data.len()) {
             return Err(Error::arg(arg, format!("data length {} is not {steps} × {width}", data.len())));
         }
         Ok(Series { data, steps, width })

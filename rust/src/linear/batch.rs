@@ -55,8 +55,9 @@ pub fn shares_covariances(model: &LinearGaussian, batch: &Batch<'_>) -> bool {
     batch.p0.len() == n * n && !batch.y.iter().any(|v| v.is_nan())
 }
 
-/// Filters every series of `batch` (in parallel on `threads` threads, all cores when `None`);
-/// returns whether the covariances were shared (then `p_filt` is `T × n × n`).
+/// Filters every series of `batch` (in parallel on `threads` threads, all cores when `None`;
+/// never more threads than series or than the machine's cores, which would only add
+/// overhead); returns whether the covariances were shared (then `p_filt` is `T × n × n`).
 pub fn filter_batch(
     model: &LinearGaussian,
     batch: Batch<'_>,
@@ -65,8 +66,21 @@ pub fn filter_batch(
 ) -> Result<bool> {
     let shared = shares_covariances(model, &batch);
     check_batch(model, &batch, &out, shared)?;
-    par::on_threads(threads, || if shared { run_shared(model, &batch, out) } else { run_each(model, &batch, out) })?;
+    par::on_threads(thread_count(threads, batch.series), || {
+        if shared {
+            run_shared(model, &batch, out)
+        } else {
+            run_each(model, &batch, out)
+        }
+    })?;
     Ok(shared)
+}
+
+/// The pool size for `series` series: `requested` (all cores when `None`), at most one thread
+/// per series or per core.
+fn thread_count(requested: Option<usize>, series: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    requested.unwrap_or(cores).min(cores).min(series).max(1)
 }
 
 fn check_batch(model: &LinearGaussian, b: &Batch<'_>, out: &BatchOutputs<'_>, shared: bool) -> Result<()> {
@@ -260,10 +274,10 @@ mod par {
 
     use crate::error::{Error, Result};
 
-    /// Runs `f` on a pool of `threads` threads (all cores when `None`).
-    pub fn on_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
+    /// Runs `f` on a pool of `threads` threads.
+    pub fn on_threads(threads: usize, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
         let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads.unwrap_or(0))
+            .num_threads(threads)
             .build()
             .map_err(|e| Error::arg("threads", e.to_string()))?;
         pool.install(f)
@@ -275,7 +289,7 @@ mod par {
     use crate::error::Result;
 
     /// Runs `f` on this thread (`threads` is ignored without the feature `rayon`).
-    pub fn on_threads(_threads: Option<usize>, f: impl FnOnce() -> Result<()>) -> Result<()> {
+    pub fn on_threads(_threads: usize, f: impl FnOnce() -> Result<()>) -> Result<()> {
         f()
     }
 

@@ -11,6 +11,7 @@
 //! No data enter after the start, so N plays no part. Only constant models can be forecast
 //! (per-step matrices cover only the data).
 
+use crate::core::alloc::check_f64_arrays;
 use crate::core::dense::{mul, mul_bt, mul_vec, mul_vec_add, symmetrize};
 use crate::core::validate::check_prior;
 use crate::core::Series;
@@ -46,6 +47,7 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
         other => other,
     })?;
     crate::linear::validate::check_input_series(model, u, steps)?;
+    check_f64_arrays("steps", &[&[steps, n], &[steps, n, n], &[steps, m], &[steps, m, m]])?;
     let sys = model.at(0);
     let mut out = Forecast {
         x: vec![0.0; steps * n],

@@ -52,7 +52,7 @@ impl StepMatrix {
         if steps == Some(0) {
             return Err(Error::arg(arg, "a per-step stack needs at least one step (T = 0)"));
         }
-        if data.len() != steps.unwrap_or(1) * rows * cols {
+        if [rows, cols].iter().try_fold(steps.unwrap_or(1), |acc, &d| acc.checked_mul(d)) != Some(data.len()) {
             return Err(Error::arg(arg, format!("data length {} does not match shape {shape:?}", data.len())));
         }
         Ok(StepMatrix { data, rows, cols, steps })
@@ -189,8 +189,11 @@ impl LinearGaussian {
         mats.f.expect_shape("F", n, n, "(F must be square)")?;
         let m = mats.h.rows;
         mats.h.expect_shape("H", m, n, "(H must have n = F's size columns)")?;
-        if n == 0 || m == 0 {
-            return Err(Error::arg("F", format!("the state (n = {n}) and output (m = {m}) must not be empty")));
+        if n == 0 {
+            return Err(Error::arg("F", "is empty: the state needs at least one component (n ≥ 1)"));
+        }
+        if m == 0 {
+            return Err(Error::arg("H", "has no rows: the output needs at least one component (m ≥ 1)"));
         }
         mats.q.expect_shape("Q", n, n, "(n × n, n = F's size)")?;
         mats.r.expect_shape("R", m, m, "(m × m, m = H's rows)")?;

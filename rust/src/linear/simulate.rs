@@ -25,8 +25,24 @@ pub fn propagate(
     if x_init.len() != n {
         return Err(Error::arg("x_init", format!("expected {n} entries, got {}", x_init.len())));
     }
-    if v.steps() != steps {
-        return Err(Error::arg("v", format!("has {} steps but w has {steps}", v.steps())));
+    if let Some(v) = x_init.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg("x_init", format!("contains a non-finite value ({v})")));
+    }
+    if steps == 0 {
+        return Err(Error::arg("w", "has no steps (T must be ≥ 1)"));
+    }
+    for (arg, noise, width) in [("w", w, n), ("v", v, m)] {
+        if noise.width() != width {
+            return Err(Error::arg(arg, format!("expected {width} columns, got {}", noise.width())));
+        }
+        if noise.steps() != steps {
+            return Err(Error::arg(arg, format!("has {} steps but w has {steps}", noise.steps())));
+        }
+        for t in 0..steps {
+            if let Some(v) = noise.row(t).iter().find(|v| !v.is_finite()) {
+                return Err(Error::arg_at(arg, t, format!("contains a non-finite value ({v})")));
+            }
+        }
     }
     if let Some(t) = model.steps() {
         if t != steps {

@@ -20,6 +20,7 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::PyDict;
 
+use crate::core::alloc::check_f64_arrays;
 use crate::error::Error;
 use crate::linear::filter::{FilterOutputs, Series, UpdateForm, FILTER_FIELDS};
 use crate::linear::smoother::SmoothOutputs;
@@ -109,9 +110,10 @@ fn series<'a>(
 }
 
 /// A vector argument as a float64 array: float64 contiguous 1-D arrays are read in place,
-/// anything else goes through `kfast._arrays.as_float64` (lists, ints, float32, scalars ...).
+/// anything else goes through `kfast._arrays.as_float64` (lists, ints, float32, scalars,
+/// masked arrays — an ndarray subclass whose mask must not be skipped ...).
 fn vector<'py>(py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
-    if let Ok(arr) = value.cast::<PyArrayDyn<f64>>() {
+    if let Ok(arr) = value.cast_exact::<PyArrayDyn<f64>>() {
         if arr.is_c_contiguous() && arr.ndim() == 1 {
             return Ok(arr.readonly());
         }
@@ -141,25 +143,29 @@ struct OutArrays<'py> {
 }
 
 impl<'py> OutArrays<'py> {
-    fn new(py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
-        OutArrays {
+    /// Zeroed arrays of the given names and shapes; `arg` is the argument their sizes come
+    /// from (refused when they would not fit in memory).
+    fn new(py: Python<'py>, arg: &'static str, specs: &[(&'static str, &[usize])]) -> PyResult<Self> {
+        check_sizes(arg, specs)?;
+        Ok(OutArrays {
             names: specs.iter().map(|s| s.0).collect(),
             arrays: specs.iter().map(|s| PyArrayDyn::<f64>::zeros(py, IxDyn(s.1), false)).collect(),
-        }
+        })
     }
 
     /// Like [`new`](Self::new) but not zeroed, for outputs the core writes in full before
     /// they reach Python (the filter's and the smoother's: every row of every output is
     /// stored). Zeroing is a pass over memory that costs as much as a third of a
     /// frozen-gain filter step at n = 20, where P(t|t) is most of what is written.
-    fn written_in_full(py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
-        OutArrays {
+    fn written_in_full(py: Python<'py>, arg: &'static str, specs: &[(&'static str, &[usize])]) -> PyResult<Self> {
+        check_sizes(arg, specs)?;
+        Ok(OutArrays {
             names: specs.iter().map(|s| s.0).collect(),
             // SAFETY: f64 has no invalid bit patterns and no destructor; every entry is written
             // by the filter/smoother before the array is handed to Python, and an array of a
             // call that fails is dropped unseen.
             arrays: specs.iter().map(|s| unsafe { PyArrayDyn::<f64>::new(py, IxDyn(s.1), false) }).collect(),
-        }
+        })
     }
 
     /// The filter's outputs named in `wanted` (all of [`FILTER_FIELDS`] when `None`), written
@@ -175,15 +181,15 @@ impl<'py> OutArrays<'py> {
         let shapes: Vec<Vec<usize>> = chosen.iter().map(|f| f.shape_for(steps, n, m)).collect();
         let specs: Vec<(&'static str, &[usize])> =
             chosen.iter().zip(&shapes).map(|(f, s)| (f.name, s.as_slice())).collect();
-        Ok(Self::written_in_full(py, &specs))
+        Self::written_in_full(py, "y", &specs)
     }
 
     /// Appends more arrays that the core writes in full (see [`written_in_full`](Self::written_in_full)).
-    fn with_written_in_full(mut self, py: Python<'py>, specs: &[(&'static str, &[usize])]) -> Self {
-        let more = Self::written_in_full(py, specs);
+    fn with_written_in_full(mut self, py: Python<'py>, specs: &[(&'static str, &[usize])]) -> PyResult<Self> {
+        let more = Self::written_in_full(py, "y", specs)?;
         self.names.extend(more.names);
         self.arrays.extend(more.arrays);
-        self
+        Ok(self)
     }
 
     /// Mutable views of every array, in order.
@@ -204,6 +210,25 @@ impl<'py> OutArrays<'py> {
         }
         Ok(dict)
     }
+}
+
+/// Refuses output arrays that would not fit in memory (NumPy's failure to allocate would
+/// otherwise surface as a panic).
+fn check_sizes(arg: &'static str, specs: &[(&'static str, &[usize])]) -> PyResult<()> {
+    let shapes: Vec<&[usize]> = specs.iter().map(|s| s.1).collect();
+    Ok(check_f64_arrays(arg, &shapes)?)
+}
+
+/// `check_alloc(arg, shapes)`: raises `KfastError` naming `arg` when float64 arrays of these
+/// shapes would not fit in memory (for allocations the Python layer makes, e.g. simulation
+/// noise).
+#[pyfunction]
+fn check_alloc(arg: &str, shapes: Vec<Vec<usize>>) -> PyResult<()> {
+    let shapes: Vec<&[usize]> = shapes.iter().map(Vec::as_slice).collect();
+    check_f64_arrays("size", &shapes).map_err(|e| match e {
+        Error::InvalidArgument { problem, .. } => KfastError::new_err(format!("{arg}: {problem}")),
+        other => other.into(),
+    })
 }
 
 /// The fields a smoother adds to the filter's.
@@ -262,6 +287,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solvers::solve_continuous_lyapunov, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
     m.add_function(wrap_pyfunction!(model::filter_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(check_alloc, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;

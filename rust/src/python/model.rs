@@ -188,8 +188,8 @@ impl PyLinearGaussian {
             .filter(|(name, _)| outputs.as_ref().is_none_or(|w| w.iter().any(|x| x == *name)))
             .map(|(name, shape)| (*name, shape.as_slice()))
             .collect();
-        let mut out =
-            OutArrays::for_filter(py, steps, n, m, wanted_filter.as_deref())?.with_written_in_full(py, &smooth_specs);
+        let mut out = OutArrays::for_filter(py, steps, n, m, wanted_filter.as_deref())?
+            .with_written_in_full(py, &smooth_specs)?;
         let names = out.names.clone();
         let mut slices = out.slices()?;
         let model = &*self.inner;
@@ -222,7 +222,7 @@ impl PyLinearGaussian {
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let lag = non_negative("lag", lag)?;
         let (n, steps) = (self.inner.n_states(), y.steps());
-        let mut out = OutArrays::new(py, &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n])]);
+        let mut out = OutArrays::new(py, "y", &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n])])?;
         let mut slices = out.slices()?;
         let model = &*self.inner;
         py.detach(|| {
@@ -294,6 +294,13 @@ impl PyLinearGaussian {
         Ok(dict)
     }
 
+    /// Checks a prior (x0, P0) as the filter does: shapes, finite, P0 symmetric PSD.
+    #[allow(non_snake_case)]
+    fn check_prior(&self, x0: Array<'_>, P0: Array<'_>) -> PyResult<()> {
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        Ok(crate::core::validate::check_prior(self.inner.n_states(), x0, p0)?)
+    }
+
     /// States and outputs driven by the given noise w (T, n), v (T, m) from x_init.
     #[pyo3(signature = (x_init, w, v, u=None))]
     fn propagate<'py>(
@@ -343,27 +350,22 @@ pub(super) fn filter_batch<'py>(
             Y.shape()
         )));
     }
+    let k = model.n_inputs();
+    // Exact shapes: the crate's flat slices cannot tell (n, B) from (B, n).
+    let x0v = batch_part("x0", &x0, &[n], bs)?;
+    let p0v = batch_part("P0", &P0, &[n, n], bs)?;
     let (uv, u_shared) = match &u {
-        Some(u) => (Some(u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?), u.ndim() == 2),
+        Some(u) => (Some(batch_part("u", u, &[steps, k], bs)?), u.ndim() == 2),
         None => (None, false),
     };
-    let batch = crate::Batch {
-        y: yv,
-        series: bs,
-        steps,
-        u: uv,
-        u_shared,
-        x0: x0.as_slice().map_err(|_| KfastError::new_err("x0: array is not contiguous"))?,
-        p0: P0.as_slice().map_err(|_| KfastError::new_err("P0: array is not contiguous"))?,
-        form,
-    };
+    let batch = crate::Batch { y: yv, series: bs, steps, u: uv, u_shared, x0: x0v, p0: p0v, form };
     let shared = crate::linear::batch::shares_covariances(&model, &batch);
     let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
     if return_covs {
         specs.push(("P_filt", if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] }));
     }
     let spec_refs: Vec<(&'static str, &[usize])> = specs.iter().map(|(k, v)| (*k, v.as_slice())).collect();
-    let mut out = OutArrays::new(py, &spec_refs);
+    let mut out = OutArrays::new(py, "Y", &spec_refs)?;
     let mut slices = out.slices()?;
     let shared = py.detach(|| {
         let mut it = slices.iter_mut();
@@ -376,4 +378,32 @@ pub(super) fn filter_batch<'py>(
     let dict = out.into_dict(py)?;
     dict.set_item("shared", shared)?;
     Ok(dict)
+}
+
+/// The data of a batch argument of shape `shape` (shared by all series) or `(B, *shape)` (one
+/// per series).
+fn batch_part<'a>(
+    arg: &str,
+    arr: &'a PyReadonlyArrayDyn<'_, f64>,
+    shape: &[usize],
+    series: usize,
+) -> PyResult<&'a [f64]> {
+    let per_series: Vec<usize> = std::iter::once(series).chain(shape.iter().copied()).collect();
+    if arr.shape() != shape && arr.shape() != per_series.as_slice() {
+        return Err(KfastError::new_err(format!(
+            "{arg}: expected shape {} (shared) or {} (one per series, B = {series}), got {}",
+            shape_str(shape),
+            shape_str(&per_series),
+            shape_str(arr.shape())
+        )));
+    }
+    arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
+}
+
+/// A shape as Python prints it: `(4,)`, `(3, 4)`.
+fn shape_str(shape: &[usize]) -> String {
+    match shape {
+        [d] => format!("({d},)"),
+        _ => format!("({})", shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
+    }
 }

@@ -243,6 +243,12 @@ fn resume_filter(
 /// ``LinearGaussian.filter`` on the same data. Pickles (and copies) with its model; the copy
 /// continues the stream bit for bit.
 ///
+/// Threads: each call (``update``, ``predict``, ``step``, reading ``x``) runs whole, holding
+/// the GIL, so concurrent calls never corrupt the filter. But a stream is one sequence of
+/// calls: threads that share a filter interleave their updates and predictions (an error says
+/// so when two updates meet). Give each thread its own filter, use ``step`` (one call per
+/// observation), or hold a lock around each update/predict pair.
+///
 /// Parameters
 /// ----------
 /// model : LinearGaussian
@@ -433,7 +439,7 @@ impl PyKalmanFilter {
 /// Starts from the prior (x0, P0) = x(0|-1), P(0|-1). After ``update`` at step t,
 /// ``x_lagged``, ``P_lagged`` are x(t-lag|t), P(t-lag|t) (None while t < lag), and
 /// ``x_window``, ``P_window`` hold x(t-i|t) for i = 0..min(t, lag). Pickles (and copies) with
-/// its model; the copy continues the stream bit for bit.
+/// its model; the copy continues the stream bit for bit. Threads: as for ``KalmanFilter``.
 ///
 /// Parameters
 /// ----------

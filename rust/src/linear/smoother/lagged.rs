@@ -16,7 +16,10 @@ use crate::KalmanFilter;
 /// The last `lag + 1` states x̂(t−i|t), i = 0..lag, as the filter advances.
 #[derive(Debug, Clone)]
 struct LagWindow {
-    /// Slot i holds x[t−i]; only the first `len` slots are in use (the window grows at the start).
+    n: usize,
+    lag: usize,
+    /// Slot i holds x[t−i]; only the first `len` slots are in use. The slots are allocated as
+    /// the window fills (at most `lag + 1`), so a lag far beyond the data costs nothing.
     slots: Vec<PastState>,
     len: usize,
     scratch: Scratch,
@@ -24,11 +27,14 @@ struct LagWindow {
 
 impl LagWindow {
     fn new(n: usize, m: usize, lag: usize) -> Self {
-        LagWindow { slots: vec![PastState::new(n); lag + 1], len: 0, scratch: Scratch::new(n, m) }
+        LagWindow { n, lag, slots: Vec::new(), len: 0, scratch: Scratch::new(n, m) }
     }
 
     /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
     fn begin_step(&mut self, ws: &Workspace<Dyn>) {
+        if self.slots.len() <= self.lag {
+            self.slots.push(PastState::new(self.n));
+        }
         self.slots.rotate_right(1);
         self.slots[0].start(ws.x_pred(), ws.p_pred());
         self.len = (self.len + 1).min(self.slots.len());
@@ -49,7 +55,12 @@ impl LagWindow {
     }
 
     fn lag(&self) -> usize {
-        self.slots.len() - 1
+        self.lag
+    }
+
+    /// Whether the window holds `lag + 1` states (slot `lag` is x̂(t−lag|t)).
+    fn is_full(&self) -> bool {
+        self.len > self.lag
     }
 }
 
@@ -152,7 +163,7 @@ pub fn smooth_fixed_lag_into(
         ws.update(&sys, y.row(t), u_t, form, t)?;
         window.begin_step(&ws);
         window.update(&ws.last_update(sys.h));
-        if window.len == window.slots.len() {
+        if window.is_full() {
             emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
         }
         ws.predict(&sys, u_t);
@@ -280,7 +291,7 @@ impl FixedLagSmoother {
     /// x̂(t−lag | t) and P(t−lag | t) after an update at t ≥ lag; `None` before.
     pub fn lagged(&self) -> Option<(&[f64], &[f64])> {
         let lag = self.window.lag();
-        (self.filter.is_updated() && self.window.len > lag).then(|| {
+        (self.filter.is_updated() && self.window.is_full()).then(|| {
             let slot = &self.window.slots[lag];
             (slot.x.as_slice(), slot.p.as_slice())
         })
@@ -313,17 +324,22 @@ impl FixedLagSmoother {
     #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
     pub(crate) fn resume(filter: KalmanFilter, lag: usize, window: &[(&[f64], &[f64], &[f64])]) -> Result<Self> {
         let (n, m) = (filter.model().n_states(), filter.model().n_obs());
-        if window.len() > lag + 1 {
-            return Err(Error::arg("window", format!("has {} states, more than lag + 1 = {}", window.len(), lag + 1)));
+        if window.len() > lag.saturating_add(1) {
+            return Err(Error::arg(
+                "window",
+                format!("has {} states, more than lag + 1 = {}", window.len(), lag.saturating_add(1)),
+            ));
         }
         let mut lag_window = LagWindow::new(n, m, lag);
-        for (slot, &(x, p, c)) in lag_window.slots.iter_mut().zip(window) {
+        for &(x, p, c) in window {
             if x.len() != n || p.len() != n * n || c.len() != n * n {
                 return Err(Error::arg("window", format!("expected states of n = {n} and covariances of n × n")));
             }
+            let mut slot = PastState::new(n);
             slot.x.copy_from_slice(x);
             slot.p.copy_from_slice(p);
             slot.c.copy_from_slice(c);
+            lag_window.slots.push(slot);
         }
         lag_window.len = window.len();
         Ok(FixedLagSmoother { filter, window: lag_window })
