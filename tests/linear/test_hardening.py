@@ -245,8 +245,10 @@ def test_filter_batch_refuses_transposed_priors_and_inputs():
     Y = np.zeros((3, 6))  # B = 3 series = n states = k inputs: element counts cannot tell
     x0s, P0s, u = np.zeros((3, 3)), np.stack([np.eye(3)] * 3), np.zeros((3, 6, 3))
     kfast.filter_batch(model, Y, x0s, P0s, u=u)  # the right shapes work
-    with pytest.raises(kfast.KfastError, match=r"^u: expected shape \(6, 3\) \(shared\) or \(3, 6, 3\)"):
+    with pytest.raises(kfast.KfastError, match=r"^u: has 3 steps but Y has 6"):
         kfast.filter_batch(model, Y, x0s, P0s, u=np.zeros((6, 3, 3)))
+    with pytest.raises(kfast.KfastError, match=r"^u: expected shape \(6, 3\) \(shared\) or \(3, 6, 3\)"):
+        kfast.filter_batch(model, Y, x0s, P0s, u=np.zeros((2, 6, 3)))
     with pytest.raises(kfast.KfastError, match=r"^x0: expected shape \(3,\) \(shared\) or \(3, 3\)"):
         kfast.filter_batch(model, Y, np.zeros(9), P0s, u=u)
 

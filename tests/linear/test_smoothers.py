@@ -180,7 +180,7 @@ def test_smoother_arguments_are_checked():
         model.smooth_fixed_point(case.y, case.x0, case.P0, 8, u=case.u)
     with pytest.raises(kfast.KfastError, match="^t_point: must be >= 0, got -2"):
         model.smooth_fixed_point(case.y, case.x0, case.P0, -2, u=case.u)
-    with pytest.raises(kfast.KfastError, match="^lag: must be ≥ 0, got -3"):
+    with pytest.raises(kfast.KfastError, match="^lag: must be >= 0, got -3"):
         kfast.FixedLagSmoother(model, case.x0, case.P0, -3)
 
 

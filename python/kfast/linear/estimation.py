@@ -265,6 +265,8 @@ def em(
         return LinearGaussian(F, H, Q, R, B=B, D=D).smooth(y, x0, P0, u=u, outputs=("x_smooth", "P_smooth", "P_lag1"))
 
     sm = e_step(F, H, Q, R, x0, P0)  # first, so that the core validates y, x0, P0 and u
+    _check_em_scale("y", y)
+    _check_em_scale("x0", np.asarray(x0))
     x0 = np.array(x0, dtype=float).reshape(model.n_states)  # copies: EM updates them
     P0 = np.array(P0, dtype=float).reshape(model.n_states, model.n_states)
     T = len(y)
@@ -308,7 +310,7 @@ def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):
         Ax = np.einsum("tij,tj->ti", A, xs)
         terms = A @ Exx @ np.swapaxes(A, 1, 2) + Ax[:, :, None] * e[:, None, :] + e[:, :, None] * Ax[:, None, :]
         terms += e[:, :, None] * e[:, None, :] + Rc
-        R = _sym(terms[used].mean(axis=0))
+        R = _covariance_estimate(terms[used].mean(axis=0))
     if "F" in fit:
         lhs = (Pl[1:] + xs[1:, :, None] * xs[:-1, None, :] - a[:-1, :, None] * xs[:-1, None, :]).sum(axis=0)
         F = lhs @ np.linalg.pinv(Exx[:-1].sum(axis=0))
@@ -316,12 +318,12 @@ def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):
         err = xs[1:] - xs[:-1] @ F.T - a[:-1]
         PlF = Pl[1:] @ F.T
         terms = err[:, :, None] * err[:, None, :] + F @ Ps[:-1] @ F.T + Ps[1:] - PlF - np.swapaxes(PlF, 1, 2)
-        Q = _sym(terms.mean(axis=0))
+        Q = _covariance_estimate(terms.mean(axis=0))
     if "x0" in fit:
         x0 = xs[0].copy()
     if "P0" in fit:
         dx = xs[0] - x0
-        P0 = _sym(Ps[0] + np.outer(dx, dx))
+        P0 = _covariance_estimate(Ps[0] + np.outer(dx, dx))
     return F, H, Q, R, x0, P0
 
 
@@ -352,5 +354,26 @@ def _observation_moments(y, d, H, R):
     return M, c, Rc, used
 
 
-def _sym(A: np.ndarray) -> np.ndarray:
-    return (A + A.T) / 2
+def _covariance_estimate(A: np.ndarray) -> np.ndarray:
+    """The symmetric part of a covariance estimate, with eigenvalues that rounding pushed below
+    zero set to zero (over thousands of iterations an R or Q shrinking towards a singular limit
+    otherwise turns indefinite by about 1e-15 and stops EM with a confusing error)."""
+    S = (A + A.T) / 2
+    lam, V = np.linalg.eigh(S)
+    if lam.min() >= 0:
+        return S
+    C = (V * np.clip(lam, 0.0, None)) @ V.T
+    return (C + C.T) / 2
+
+
+# EM sums squares of the data and of the states: entries beyond this would overflow.
+_EM_MAX_ENTRY = 1e150
+
+
+def _check_em_scale(name: str, a: np.ndarray) -> None:
+    finite = np.abs(a[np.isfinite(a)])
+    if finite.size and finite.max() > _EM_MAX_ENTRY:
+        raise KfastError(
+            f"{name}: has entries up to {finite.max():.3g}, too large for EM's second moments "
+            f"(which square them); rescale so that |{name}| < {_EM_MAX_ENTRY:g}"
+        )

@@ -88,6 +88,31 @@ fn non_negative(arg: &str, value: i64) -> PyResult<usize> {
     usize::try_from(value).map_err(|_| KfastError::new_err(format!("{arg}: must be ≥ 0, got {value}")))
 }
 
+/// Calls `kfast._args.<check>(*args)`: the one place the scalar arguments (counts, choices,
+/// flags) are checked, for the classes that Python reaches without a wrapper.
+fn checked_arg<'py>(
+    py: Python<'py>,
+    check: &str,
+    args: impl pyo3::call::PyCallArgs<'py>,
+) -> PyResult<Bound<'py, PyAny>> {
+    py.import("kfast._args")?.getattr(check)?.call1(args)
+}
+
+/// A count argument (a non-negative integer below 2⁶³), checked by `kfast._args.index`.
+fn index_arg(py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<usize> {
+    checked_arg(py, "index", (name, value))?.extract()
+}
+
+/// The `form=` argument (default Joseph), checked by `kfast._args.choice`.
+fn form_arg(py: Python<'_>, value: Option<&Bound<'_, PyAny>>) -> PyResult<UpdateForm> {
+    match value {
+        None => Ok(UpdateForm::Joseph),
+        Some(value) => {
+            parse_form(&checked_arg(py, "choice", ("form", value, ("joseph", "standard")))?.extract::<String>()?)
+        }
+    }
+}
+
 fn parse_form(form: &str) -> PyResult<UpdateForm> {
     match form {
         "joseph" => Ok(UpdateForm::Joseph),

@@ -355,6 +355,9 @@ pub(super) fn filter_batch<'py>(
     let x0v = batch_part("x0", &x0, &[n], bs)?;
     let p0v = batch_part("P0", &P0, &[n, n], bs)?;
     let (uv, u_shared) = match &u {
+        Some(u) if u.ndim() >= 2 && u.shape()[u.ndim() - 2] != steps => {
+            return Err(KfastError::new_err(format!("u: has {} steps but Y has {steps}", u.shape()[u.ndim() - 2])));
+        }
         Some(u) => (Some(batch_part("u", u, &[steps, k], bs)?), u.ndim() == 2),
         None => (None, false),
     };

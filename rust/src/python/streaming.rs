@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple, PyType};
 
 use super::model::PyLinearGaussian;
-use super::{as_float64, data, non_negative, parse_form, prior, slice, to_array, vector, KfastError};
+use super::{as_float64, data, form_arg, index_arg, prior, slice, to_array, vector, KfastError};
 use crate::linear::filter::{self, KalmanFilter, UpdateForm};
 use crate::linear::model::LinearGaussian;
 use crate::linear::smoother::FixedLagSmoother;
@@ -292,16 +292,16 @@ pub(super) struct PyKalmanFilter {
 #[pymethods]
 impl PyKalmanFilter {
     #[new]
-    #[pyo3(signature = (model, x0, P0, form="joseph"))]
+    #[pyo3(signature = (model, x0, P0, form=None), text_signature = "(model, x0, P0, form='joseph')")]
     #[allow(non_snake_case)]
     fn new(
         py: Python<'_>,
         model: &Bound<'_, PyAny>,
         x0: &Bound<'_, PyAny>,
         P0: &Bound<'_, PyAny>,
-        form: &str,
+        form: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let form: UpdateForm = parse_form(form)?;
+        let form: UpdateForm = form_arg(py, form)?;
         let (core, x0, p0) = model_and_prior(py, model, x0, P0)?;
         let inner = filter::KalmanFilter::new(core.clone(), &x0, &p0, form)?;
         let origin = Origin { model: model.clone().unbind(), core, x0, p0 };
@@ -479,18 +479,18 @@ pub(super) struct PyFixedLagSmoother {
 #[pymethods]
 impl PyFixedLagSmoother {
     #[new]
-    #[pyo3(signature = (model, x0, P0, lag, form="joseph"))]
+    #[pyo3(signature = (model, x0, P0, lag, form=None), text_signature = "(model, x0, P0, lag, form='joseph')")]
     #[allow(non_snake_case)]
     fn new(
         py: Python<'_>,
         model: &Bound<'_, PyAny>,
         x0: &Bound<'_, PyAny>,
         P0: &Bound<'_, PyAny>,
-        lag: i64,
-        form: &str,
+        lag: &Bound<'_, PyAny>,
+        form: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let lag = non_negative("lag", lag)?;
-        let form = parse_form(form)?;
+        let lag = index_arg(py, "lag", lag)?;
+        let form = form_arg(py, form)?;
         let (core, x0, p0) = model_and_prior(py, model, x0, P0)?;
         let inner = FixedLagSmoother::new(core.clone(), &x0, &p0, lag, form)?;
         let origin = Origin { model: model.clone().unbind(), core, x0, p0 };
