@@ -366,3 +366,41 @@ def test_a_filter_shared_by_threads_stays_consistent(cv):
     assert shared.t == 2000
     np.testing.assert_array_equal(shared.x, sequential.x)
     np.testing.assert_array_equal(shared.P, sequential.P)
+
+
+# --- numerical failures are errors naming the step ---------------------------------------------
+
+
+def test_a_singular_innovation_covariance_is_an_error_naming_the_step():
+    # Q = 0 and a rank-one R: after two updates one combination of y is known exactly and S is
+    # singular; the factorization used to accept a pivot of 1e-15 relative and the smoothed
+    # covariance reached 4e15 (exact: 2.4e-14).
+    rng = np.random.default_rng(155)
+    F = 0.5 * rng.standard_normal((4, 4))
+    H = rng.standard_normal((2, 4))
+    b = rng.standard_normal((2, 1))
+    C = rng.standard_normal((4, 4))
+    y = rng.standard_normal((30, 2))
+    model = kfast.LinearGaussian(F, H, 0 * I, b @ b.T)
+    for call in (model.smooth, model.filter, model.loglik):
+        with pytest.raises(kfast.InnovationCovarianceError, match=r"at step 4 .*not positive definite to working precision"):
+            call(y, z, C @ C.T)
+
+
+def test_components_in_very_different_units_are_not_singular():
+    # The pivot test is relative to each component's own variance: S = diag(1e8, 1e-8) is fine.
+    model = kfast.LinearGaussian(F=np.eye(2), H=np.eye(2), Q=np.diag([1e8, 1e-8]), R=np.diag([1e8, 1e-8]))
+    y = np.column_stack([1e4 * np.sin(np.arange(20.0)), 1e-4 * np.cos(np.arange(20.0))])
+    res = model.filter(y, np.zeros(2), np.diag([1e8, 1e-8]))
+    scaled = kfast.LinearGaussian(F=np.eye(2), H=np.eye(2), Q=np.eye(2), R=np.eye(2))
+    ref = scaled.filter(y / [1e4, 1e-4], np.zeros(2), np.eye(2))
+    np.testing.assert_allclose(res.x_filt / [1e4, 1e-4], ref.x_filt, rtol=1e-12)
+    assert np.isclose(res.loglik - ref.loglik, -20 * (np.log(1e8) + np.log(1e-8)) / 2, atol=1e-9)
+
+
+def test_a_state_that_overflows_is_an_error_naming_the_step():
+    # A known (P = 0) state multiplied by 1e100 per step leaves float64's range at step 3.
+    model = kfast.LinearGaussian(F=1e100, H=1.0, Q=0.0, R=1.0)
+    for call in (model.filter, model.loglik, model.smooth):
+        with pytest.raises(kfast.KfastError, match=r"^y at step \d+: the state estimate overflowed"):
+            call(np.ones(10), 1.0, 0.0)

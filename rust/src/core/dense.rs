@@ -201,18 +201,29 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 /// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
 /// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
 /// it was). A symmetric `a` is positive definite iff every `d_j > 0`; on failure returns the
-/// first `j` that is not, or is not a normal number (a subnormal pivot would make its
-/// reciprocal infinite). Used for the innovation covariance S: with no square
-/// roots its latency is one division per pivot, which bounds a small filter step.
+/// first `j` that is not, is not a normal number (a subnormal pivot would make its
+/// reciprocal infinite), or is at rounding level: `d_j ≤ 32 n ε a_jj`.
+///
+/// Why that floor: `d_j / a_jj` is one minus the squared multiple correlation of component j
+/// with the ones before it, so the test does not depend on the units of the components (S may
+/// mix metres and radians squared), and the computed factor's backward error is about
+/// `n ε √(a_ii a_jj)` entrywise (Higham, *Accuracy and Stability of Numerical Algorithms*,
+/// ch. 10): a pivot below a small multiple of `n ε a_jj` is the pivot of a matrix within
+/// rounding of a singular one, and its value carries no information — dividing by it turned
+/// a singular S (Q = 0, rank-one R) into a smoothed covariance of 1e15 (issue 10). Used for
+/// the innovation covariance S: with no square roots its latency is one division per pivot,
+/// which bounds a small filter step.
 #[inline(always)]
 pub(crate) fn ldl(a: &mut [f64], n: usize) -> Result<(), usize> {
+    let floor = 32.0 * n as f64 * f64::EPSILON;
     for j in 0..n {
-        let mut d = a[j * n + j];
+        let a_jj = a[j * n + j];
+        let mut d = a_jj;
         for l in 0..j {
             d -= a[j * n + l] * (a[j * n + l] * a[l * n + l]);
         }
         // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
-        if !(d >= f64::MIN_POSITIVE && d.is_finite()) {
+        if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d.is_finite()) {
             return Err(j);
         }
         a[j * n + j] = d;

@@ -233,8 +233,9 @@ fn not_positive_definite(t: usize, j: usize, mo: usize) -> Error {
     Error::InnovationCovariance {
         step: t,
         problem: format!(
-            "not positive definite (pivot {j} of the {mo} observed components fails); \
-             R may be singular where H P H' is too"
+            "not positive definite to working precision (pivot {j} of the {mo} observed \
+             components is not above rounding: that component is a linear function of the \
+             others); R may be singular where H P H' is too"
         ),
     }
 }

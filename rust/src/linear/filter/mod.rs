@@ -21,6 +21,7 @@ use crate::error::Result;
 use crate::linear::model::{LinearGaussian, StepView};
 use crate::linear::validate::check_converge_tol;
 pub(crate) use crate::linear::validate::{check_data, check_series};
+use step::overflowed;
 
 /// How the filter runs: the covariance update form and whether to freeze the gains once the
 /// covariance has converged.
@@ -213,6 +214,11 @@ impl Run<'_> {
             ws.predict(&sys, u_t);
             total += ws.loglik_t();
             out.store_step(t, ws);
+        }
+        // Each update checks its own result; a state that overflows during trailing missing
+        // steps is caught here.
+        if ws.x_pred().iter().any(|v| !v.is_finite()) {
+            return Err(overflowed(self.y.steps().saturating_sub(1)));
         }
         Ok(total)
     }

@@ -24,7 +24,7 @@
 use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_vec, mul_vec_add, symmetrize, transpose};
 use crate::core::dims::{Buf, Dims};
 use crate::core::gaussian::{GaussianUpdate, MeasurementPrediction};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::linear::model::StepView;
 
 pub use crate::core::gaussian::UpdateForm;
@@ -224,8 +224,27 @@ impl<D: Dims> Workspace<D> {
     }
 
     /// Measurement update with `y` (NaN = missing), from (x_pred, p_pred) to (x_filt, p_filt).
+    /// Fails when S is not positive definite, or when the state has left float64's range (a
+    /// NaN reaches the log-likelihood term at the first step whose innovation or state
+    /// overflowed: an unstable F over a long series, data near 1e308).
     #[inline(always)]
     pub fn update(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        self.update_moments(sys, y, u, form, t)?;
+        if self.update.loglik_t().is_nan() {
+            return Err(overflowed(t));
+        }
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn update_moments(
         &mut self,
         sys: &StepView<'_>,
         y: &[f64],
@@ -458,4 +477,16 @@ impl<D: Dims> Workspace<D> {
             }
         }
     }
+}
+
+/// The error for a state estimate that left float64's range at step `t` (out of line: the
+/// time loop keeps only a branch).
+#[cold]
+#[inline(never)]
+pub(crate) fn overflowed(t: usize) -> Error {
+    Error::arg_at(
+        "y",
+        t,
+        "the state estimate overflowed (it is no longer finite): the data or F drive it beyond float64's range",
+    )
 }
