@@ -344,6 +344,15 @@ mod tests {
         assert_eq!(ldl(&mut indefinite, 2), Err(1));
         let mut subnormal = [1e-310];
         assert_eq!(ldl(&mut subnormal, 1), Err(0));
+        // The second component is the first plus noise of variance 4 ε: a positive pivot at
+        // rounding level of its own variance, refused; in other units (scaled by 1e±10) too.
+        for scale in [1.0, 1e10, 1e-10] {
+            let mut collinear = [scale * scale, scale, scale, 1.0 + 4.0 * f64::EPSILON];
+            assert_eq!(ldl(&mut collinear, 2), Err(1), "scale {scale}");
+        }
+        // Very different variances but uncorrelated components are fine.
+        let mut units = [1e16, 0.0, 0.0, 1e-16];
+        assert_eq!(ldl(&mut units, 2), Ok(()));
     }
 
     #[test]
