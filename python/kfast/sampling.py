@@ -9,7 +9,7 @@ small h, never Qc itself). Inputs are held constant over each interval (zero-ord
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -60,7 +60,7 @@ def expm(a: ArrayLike) -> np.ndarray:
     return _kfast.expm(_matrix("a", _unmasked("a", a)))
 
 
-def _unmasked(name: str, value: ArrayLike) -> ArrayLike:
+def _unmasked(name: str, value: Any) -> Any:
     """``value`` without its mask; an error naming ``name`` if any entry is masked (a model
     matrix or an interval cannot be missing, and np.asarray would silently use the hidden
     data)."""
@@ -69,6 +69,33 @@ def _unmasked(name: str, value: ArrayLike) -> ArrayLike:
             raise _kfast.KfastError(f"{name}: has masked entries; a model matrix or interval cannot be missing")
         return value.data
     return value
+
+
+def _square(name: str, value: ArrayLike) -> np.ndarray:
+    a = _matrix(name, _unmasked(name, value))
+    if a.shape[0] != a.shape[1]:
+        raise _kfast.KfastError(f"{name}: expected a square matrix, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise _kfast.KfastError(f"{name}: contains a non-finite value")
+    return a
+
+
+def _covariance(name: str, value: ArrayLike, n: int, definite: bool = False) -> np.ndarray:
+    """An (n, n) symmetric positive semidefinite (``definite``: positive definite) matrix, with
+    the relative tolerance 1e-10 of the core's checks; an error naming ``name`` otherwise."""
+    c = _square(name, value)
+    if c.shape != (n, n):
+        raise _kfast.KfastError(f"{name}: expected shape ({n}, {n}), got {c.shape}")
+    scale = np.abs(c).max() if n else 0.0
+    if np.abs(c - c.T).max(initial=0.0) > 1e-10 * scale:
+        raise _kfast.KfastError(f"{name}: not symmetric")
+    if n:
+        eig = np.linalg.eigvalsh(c)
+        tol = 1e-10 * np.abs(eig).max()
+        if (eig[0] <= tol) if definite else (eig[0] < -tol):
+            kind = "definite" if definite else "semidefinite"
+            raise _kfast.KfastError(f"{name}: not positive {kind} (smallest eigenvalue {eig[0]:.6e})")
+    return c
 
 
 class Discretized(NamedTuple):
@@ -94,7 +121,8 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     Qc : array_like, shape (n, n)
         Symmetric positive semidefinite intensity.
     dt : float or array_like, shape (T,)
-        The interval, or T intervals (then every output is a per-step stack), all > 0.
+        The interval, or T >= 1 intervals (then every output is a per-step stack), all
+        positive and finite.
     B : array_like, shape (n, k), optional
 
     Returns
@@ -143,8 +171,8 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     A_arr, Qc_arr = _matrix("A", _unmasked("A", A)), _matrix("Qc", _unmasked("Qc", Qc))
     B_arr = None if B is None else _matrix("B", _unmasked("B", B))
     dt_arr = as_float64("dt", _unmasked("dt", dt))
-    if dt_arr.ndim > 1:
-        raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {dt_arr.shape}")
+    if dt_arr.ndim > 1 or dt_arr.size == 0:
+        raise _kfast.KfastError(f"dt: expected a scalar or a non-empty 1-D array, got shape {dt_arr.shape}")
     try:
         out = _kfast.discretize(A_arr, Qc_arr, np.atleast_1d(dt_arr), B_arr)
     except _kfast.KfastError as exc:
@@ -220,7 +248,9 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     ------
     KfastError
         Unless A is Hurwitz: the Lyapunov equation may still have a (negative) solution, which
-        is not a covariance (Grewal & Andrews problem 4.27).
+        is not a covariance (Grewal & Andrews problem 4.27). Also naming ``A`` or ``Qc`` when
+        they are not finite square matrices of one size, and ``Qc`` when it is not symmetric
+        positive semidefinite.
 
     Examples
     --------
@@ -231,8 +261,9 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     """
     from kfast.riccati.solvers import solve_continuous_lyapunov
 
-    A, Qc = _matrix("A", A), _matrix("Qc", Qc)
-    top = float(np.linalg.eigvals(A).real.max())
+    A = _square("A", A)
+    Qc = _covariance("Qc", Qc, len(A))
+    top = float(np.linalg.eigvals(A).real.max()) if len(A) else -np.inf
     if top >= 0:
         raise _kfast.KfastError(
             f"A: is not stable (largest real part of an eigenvalue {top:.6g}): the state has no stationary covariance"
@@ -278,6 +309,9 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     ------
     NoStabilizingSolutionError
         When (A, H) is not detectable or the noise does not excite the unstable modes.
+    KfastError
+        Naming the argument: shapes that do not fit, non-finite or masked entries, ``Qc`` not
+        symmetric positive semidefinite, ``Rc`` not symmetric positive definite.
 
     Notes
     -----
@@ -290,6 +324,11 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     >>> print(kb.P.round(6), kb.K.round(6), kb.closed_loop_eigenvalues.real.round(6))
     [[0.414214]] [[0.414214]] [-1.414214]
     """
-    A, H = _matrix("A", A), _matrix("H", H)
+    A = _square("A", A)
+    H = _matrix("H", _unmasked("H", H))
+    if H.shape[1] != len(A):
+        raise _kfast.KfastError(f"H: expected {len(A)} columns like A, got shape {H.shape}")
+    Qc = _covariance("Qc", Qc, len(A))
+    Rc = _covariance("Rc", Rc, len(H), definite=True)
     sol = care(A.T, H.T, Qc, Rc)
     return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])
