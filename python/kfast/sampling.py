@@ -9,7 +9,7 @@ small h, never Qc itself). Inputs are held constant over each interval (zero-ord
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -31,15 +31,23 @@ def expm(a: ArrayLike) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n, n)
+        Every entry finite.
 
     Raises
     ------
     KfastError
-        For input that is not a finite real square matrix.
+        Naming ``a``: for input that is not a finite real square matrix (masked entries
+        included), and when e^a overflows double precision (an entry beyond ±1.8e308, e.g.
+        ``expm(diag(1e5, -1e5))``), where ``scipy.linalg.expm`` returns inf entries.
 
     Notes
     -----
-    Scaling and squaring with the degree-13 Padé approximant (Higham 2005).
+    Scaling and squaring, e^a = r_m(a / 2^s)^(2^s) with the Padé approximant r_m of degree m
+    in {3, 5, 7, 9, 13}, m and s chosen from ||a^k||^(1/k) rather than ||a|| (Al-Mohy & Higham
+    2009), so that a non-normal or nilpotent ``a`` of large norm is not over-scaled (each
+    squaring doubles the rounding error). For a triangular ``a`` the diagonal and first
+    superdiagonal are recomputed exactly after each squaring: ``expm([[0, 1e20], [0, 0]])`` is
+    exactly [[1, 1e20], [0, 1]]. docs/algorithms.md, "Matrix exponential".
 
     Examples
     --------
@@ -49,7 +57,45 @@ def expm(a: ArrayLike) -> np.ndarray:
     >>> print(round(float(kfast.expm(1.0)[0, 0]), 12))
     2.718281828459
     """
-    return _kfast.expm(_matrix("a", a))
+    return _kfast.expm(_matrix("a", _unmasked("a", a)))
+
+
+def _unmasked(name: str, value: Any) -> Any:
+    """``value`` without its mask; an error naming ``name`` if any entry is masked (a model
+    matrix or an interval cannot be missing, and np.asarray would silently use the hidden
+    data)."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.getmaskarray(value).any():
+            raise _kfast.KfastError(f"{name}: has masked entries; a model matrix or interval cannot be missing")
+        return value.data
+    return value
+
+
+def _square(name: str, value: ArrayLike) -> np.ndarray:
+    a = _matrix(name, _unmasked(name, value))
+    if a.shape[0] != a.shape[1]:
+        raise _kfast.KfastError(f"{name}: expected a square matrix, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise _kfast.KfastError(f"{name}: contains a non-finite value")
+    return a
+
+
+def _covariance(name: str, value: ArrayLike, n: int, definite: bool = False) -> np.ndarray:
+    """An (n, n) symmetric positive semidefinite (``definite``: positive definite) matrix, with
+    the relative tolerance 1e-10 of the core's checks; an error naming ``name`` otherwise."""
+    c = _square(name, value)
+    if c.shape != (n, n):
+        raise _kfast.KfastError(f"{name}: expected shape ({n}, {n}), got {c.shape}")
+    scale = np.abs(c).max() if n else 0.0
+    if np.abs(c - c.T).max(initial=0.0) > 1e-10 * scale:
+        raise _kfast.KfastError(f"{name}: not symmetric")
+    if n:
+        eig = np.linalg.eigvalsh(c)
+        tol = 1e-10 * np.abs(eig).max()
+        if (eig[0] <= tol) if definite else (eig[0] < -tol):
+            kind = "definite" if definite else "semidefinite"
+            raise _kfast.KfastError(f"{name}: not positive {kind} (smallest eigenvalue {eig[0]:.6e})")
+    return c
 
 
 class Discretized(NamedTuple):
@@ -75,7 +121,8 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     Qc : array_like, shape (n, n)
         Symmetric positive semidefinite intensity.
     dt : float or array_like, shape (T,)
-        The interval, or T intervals (then every output is a per-step stack), all > 0.
+        The interval, or T >= 1 intervals (then every output is a per-step stack), all
+        positive and finite.
     B : array_like, shape (n, k), optional
 
     Returns
@@ -87,7 +134,12 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     Raises
     ------
     KfastError
-        For invalid matrices or intervals.
+        Naming the argument (a ValueError): ``A``, ``Qc`` or ``B`` of the wrong shape, not
+        real (complex, bool, object), not finite or with masked entries; ``Qc`` not symmetric
+        positive semidefinite (an indefinite intensity would give an indefinite Qd); ``dt``
+        not a scalar or a non-empty 1-D array, or not positive and finite (``dt at step t``
+        for an array); and ``dt`` when the sampled model overflows double precision (F, Qd or
+        Bd would have an entry beyond ±1.8e308: e.g. A = 1, dt = 1000).
 
     Notes
     -----
@@ -96,8 +148,12 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
         F = e^{A h},   Qd = integral over [0, h] of e^{A s} Qc e^{A' s} ds,   Bd = (integral of e^{A s} ds) B
 
     from Van Loan's (1978) block exponential in its inverse-free form,
-    exp(h [[-A, Qc], [0, A']]) = [[., E12], [0, E22]], F = E22', Qd = F E12. Qd is full even when
-    Qc is sparse.
+    exp(h [[-A, Qc], [0, A']]) = [[., E12], [0, E22]], F = E22', Qd = F E12, evaluated at
+    h = dt / 2^s (s chosen as in :func:`expm`) and then doubled s times with
+    Qd(2h) = Qd(h) + F(h) Qd(h) F(h)', Bd(2h) = Bd(h) + F(h) Bd(h), F(2h) = F(h)^2. So a long
+    interval of a stable model is exact too (A = -1, Qc = 2, dt = 1e300 gives F = 0, Qd = 1:
+    the stationary variance), and Qd stays positive semidefinite. Qd is full even when Qc is
+    sparse. docs/algorithms.md, "Van Loan".
 
     Examples
     --------
@@ -112,10 +168,18 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     >>> Bd is None
     True
     """
-    dt_arr = as_float64("dt", dt)
-    if dt_arr.ndim > 1:
-        raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {dt_arr.shape}")
-    out = _kfast.discretize(_matrix("A", A), _matrix("Qc", Qc), np.atleast_1d(dt_arr), None if B is None else _matrix("B", B))
+    A_arr, Qc_arr = _matrix("A", _unmasked("A", A)), _matrix("Qc", _unmasked("Qc", Qc))
+    B_arr = None if B is None else _matrix("B", _unmasked("B", B))
+    dt_arr = as_float64("dt", _unmasked("dt", dt))
+    if dt_arr.ndim > 1 or dt_arr.size == 0:
+        raise _kfast.KfastError(f"dt: expected a scalar or a non-empty 1-D array, got shape {dt_arr.shape}")
+    try:
+        out = _kfast.discretize(A_arr, Qc_arr, np.atleast_1d(dt_arr), B_arr)
+    except _kfast.KfastError as exc:
+        if dt_arr.ndim == 0 and str(exc).startswith("dt at step 0: "):
+            # the core always sees a stack; a scalar dt has no step
+            raise _kfast.KfastError("dt: " + str(exc)[len("dt at step 0: ") :]) from None
+        raise
     if dt_arr.ndim == 0:
         return Discretized(out["F"][0], out["Qd"][0], out["Bd"][0] if "Bd" in out else None)
     return Discretized(out["F"], out["Qd"], out.get("Bd"))
@@ -149,7 +213,7 @@ def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None)
     if (dt is None) == (times is None):
         raise _kfast.KfastError("dt, times: give exactly one of them")
     if times is not None:
-        t = as_float64("times", times)
+        t = as_float64("times", _unmasked("times", times))
         if t.ndim != 1 or len(t) < 2:
             raise _kfast.KfastError(f"times: expected a 1-D array of at least 2 sample times, got shape {t.shape}")
         d = np.diff(t)
@@ -158,9 +222,9 @@ def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None)
             raise _kfast.KfastError(f"times at step {bad[0] + 1}: not strictly increasing ({t[bad[0]]} then {t[bad[0] + 1]})")
         d = np.append(d, d[-1])
     else:
-        d = np.atleast_1d(as_float64("dt", dt))
-        if d.ndim != 1:
-            raise _kfast.KfastError(f"dt: expected a scalar or a 1-D array, got shape {d.shape}")
+        d = np.atleast_1d(as_float64("dt", _unmasked("dt", dt)))
+        if d.ndim != 1 or len(d) == 0:
+            raise _kfast.KfastError(f"dt: expected a scalar or a non-empty 1-D array, got shape {d.shape}")
     bad = np.flatnonzero(~(d > 0) | ~np.isfinite(d))
     if len(bad):
         raise _kfast.KfastError(f"dt at step {bad[0]}: must be positive and finite, got {d[bad[0]]}")
@@ -184,7 +248,9 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     ------
     KfastError
         Unless A is Hurwitz: the Lyapunov equation may still have a (negative) solution, which
-        is not a covariance (Grewal & Andrews problem 4.27).
+        is not a covariance (Grewal & Andrews problem 4.27). Also naming ``A`` or ``Qc`` when
+        they are not finite square matrices of one size, and ``Qc`` when it is not symmetric
+        positive semidefinite.
 
     Examples
     --------
@@ -195,8 +261,9 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     """
     from kfast.riccati.solvers import solve_continuous_lyapunov
 
-    A, Qc = _matrix("A", A), _matrix("Qc", Qc)
-    top = float(np.linalg.eigvals(A).real.max())
+    A = _square("A", A)
+    Qc = _covariance("Qc", Qc, len(A))
+    top = float(np.linalg.eigvals(A).real.max()) if len(A) else -np.inf
     if top >= 0:
         raise _kfast.KfastError(
             f"A: is not stable (largest real part of an eigenvalue {top:.6g}): the state has no stationary covariance"
@@ -242,6 +309,9 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     ------
     NoStabilizingSolutionError
         When (A, H) is not detectable or the noise does not excite the unstable modes.
+    KfastError
+        Naming the argument: shapes that do not fit, non-finite or masked entries, ``Qc`` not
+        symmetric positive semidefinite, ``Rc`` not symmetric positive definite.
 
     Notes
     -----
@@ -254,6 +324,11 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     >>> print(kb.P.round(6), kb.K.round(6), kb.closed_loop_eigenvalues.real.round(6))
     [[0.414214]] [[0.414214]] [-1.414214]
     """
-    A, H = _matrix("A", A), _matrix("H", H)
+    A = _square("A", A)
+    H = _matrix("H", _unmasked("H", H))
+    if H.shape[1] != len(A):
+        raise _kfast.KfastError(f"H: expected {len(A)} columns like A, got shape {H.shape}")
+    Qc = _covariance("Qc", Qc, len(A))
+    Rc = _covariance("Rc", Rc, len(H), definite=True)
     sol = care(A.T, H.T, Qc, Rc)
     return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])

@@ -1,6 +1,8 @@
 //! Integration tests of the matrix exponential ([`kfast::expm`], the core of sampling) through
 //! the public API: closed forms (diagonal, nilpotent, rotation, Jordan block), on both sides of
-//! the scaling-and-squaring threshold (‖A‖₁ ≈ 5.4), and e^A e^−A = I on seeded random matrices.
+//! the scaling-and-squaring threshold (‖A‖₁ ≈ 5.4), and e^A e^−A = I on seeded random matrices;
+//! the reproducers of issue #10 (large-norm nilpotent input, overflow as an error, long
+//! intervals and an indefinite Qc in discretize).
 
 mod common;
 
@@ -110,5 +112,70 @@ fn bad_input_is_an_error() {
             }
             other => panic!("{what}: expected InvalidArgument on a, got {other:?}"),
         }
+    }
+}
+
+#[test]
+fn large_norm_nilpotent_and_triangular_are_exact() -> Result<()> {
+    // Issue #10: ‖A‖₁ = 1e20 gave zeros (64 squarings of r13), 1e12 a relative error of 3e-5.
+    for x in [1e8, 1e12, 1e15, 1e20, 1e300] {
+        assert_eq!(expm(&[0.0, x, 0.0, 0.0], 2)?, vec![1.0, x, 0.0, 1.0], "[[0, {x:e}], [0, 0]]");
+        assert_eq!(expm(&[0.0, 0.0, x, 0.0], 2)?, vec![1.0, 0.0, x, 1.0], "[[0, 0], [{x:e}, 0]]");
+    }
+    // exp([[a, b], [0, c]]) = [[e^a, b (e^c − e^a)/(c − a)], [0, e^c]]
+    let (a, b, c) = (-1.0f64, 1e15, -2.0f64);
+    let got = expm(&[a, b, 0.0, c], 2)?;
+    assert_close("triangular", &got, &[a.exp(), b * (c.exp() - a.exp()) / (c - a), 0.0, c.exp()], 1e-15, 0.0);
+    Ok(())
+}
+
+#[test]
+fn overflow_is_an_error_on_a() {
+    // Issue #10: diag(1e5, −1e5) was all NaN (SciPy: [[inf, 0], [0, 0]]).
+    for (a, n) in [(vec![1e5, 0.0, 0.0, -1e5], 2), (vec![710.0], 1), (vec![1.7e308; 4], 2)] {
+        match expm(&a, n) {
+            Err(err @ Error::InvalidArgument { arg: "a", step: None, .. }) => {
+                assert!(err.to_string().starts_with("a: e^a overflows double precision"), "{err}");
+            }
+            other => panic!("{a:?}: expected InvalidArgument on a, got {other:?}"),
+        }
+    }
+    // Underflow is no error.
+    assert_eq!(expm(&[-1e5, 0.0, 0.0, -1e300], 2), Ok(vec![0.0; 4]));
+}
+
+#[test]
+fn discretize_long_intervals_and_overflow() -> Result<()> {
+    // Ornstein–Uhlenbeck, Qc = 2: F = e^−dt, Qd = 1 − e^−2dt, also where e^{+dt} overflows.
+    for dt in [1.0, 800.0, 1e300] {
+        let d = kfast::discretize(&[-1.0], &[2.0], Some(&[1.0]), 1, 1, dt)?;
+        assert_close(&format!("F, dt {dt}"), &d.f, &[(-dt).exp()], 1e-15 * dt.min(1e3), 1e-300);
+        assert_close(&format!("Qd, dt {dt}"), &d.qd, &[-(-2.0 * dt).exp_m1()], 1e-14, 0.0);
+        assert_close(&format!("Bd, dt {dt}"), &d.bd, &[-(-dt).exp_m1()], 1e-14, 0.0);
+    }
+    // Constant velocity at dt = 1e300: Qd = dt³/3 overflows: an error naming dt.
+    let (a, qc) = ([0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]);
+    match kfast::discretize(&a, &qc, None, 2, 0, 1e300) {
+        Err(Error::InvalidArgument { arg: "dt", step: None, problem }) => {
+            assert!(problem.contains("overflows"), "{problem}")
+        }
+        other => panic!("expected an error on dt, got {other:?}"),
+    }
+    match kfast::discretize_steps(&a, &qc, None, 2, 0, &[0.1, 1e300]) {
+        Err(Error::InvalidArgument { arg: "dt", step: Some(1), .. }) => {}
+        other => panic!("expected an error on dt at step 1, got {other:?}"),
+    }
+    assert!(matches!(kfast::discretize_steps(&a, &qc, None, 2, 0, &[]), Err(Error::InvalidArgument { arg: "dt", .. })));
+    Ok(())
+}
+
+#[test]
+fn discretize_rejects_an_indefinite_intensity() {
+    // Issue #10: a non-PSD Qc gave a non-PSD Qd (and the model then blamed "Q").
+    match kfast::discretize(&[0.0, 0.0, 0.0, 0.0], &[1.0, 0.0, 0.0, -1.0], None, 2, 0, 0.1) {
+        Err(err @ Error::InvalidArgument { arg: "Qc", .. }) => {
+            assert!(err.to_string().contains("not positive semidefinite"), "{err}")
+        }
+        other => panic!("expected an error on Qc, got {other:?}"),
     }
 }
