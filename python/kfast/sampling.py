@@ -8,6 +8,7 @@ small h, never Qc itself). Inputs are held constant over each interval (zero-ord
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Optional
 
@@ -268,7 +269,10 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
         raise _kfast.KfastError(
             f"A: is not stable (largest real part of an eigenvalue {top:.6g}): the state has no stationary covariance"
         )
-    return solve_continuous_lyapunov(A, -Qc)
+    try:
+        return solve_continuous_lyapunov(A, -Qc)
+    except _kfast.KfastError as exc:  # the solver's own names are a (A) and q (-Qc)
+        raise _kfast.KfastError(re.sub(r"^a\b", "A", str(exc))) from None
 
 
 @dataclass(frozen=True, repr=False)

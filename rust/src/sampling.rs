@@ -73,7 +73,7 @@ const THETA13: f64 = 5.371_920_351_148_152;
 /// [`Error::InvalidArgument`] on `a` for a wrong size, a non-finite entry, or when e^a
 /// overflows double precision (SciPy returns ±inf entries there; kfast refuses).
 pub fn expm(a: &[f64], n: usize) -> Result<Vec<f64>> {
-    if a.len() != n * n {
+    if n.checked_mul(n) != Some(a.len()) {
         return Err(Error::arg("a", format!("expected an ({n}, {n}) matrix, got {} entries", a.len())));
     }
     if let Some(v) = a.iter().find(|v| !v.is_finite()) {
@@ -352,7 +352,7 @@ fn discretize_mat(
     let n = a.nrows();
     let overflow = |what: &str| {
         format!(
-            "the sampled model overflows double precision at dt = {dt:e} ({what} not finite; ‖A dt‖₁ = {:.6e}, ‖Qc dt‖₁ = {:.6e}): use a shorter interval",
+            "the sampled model overflows double precision at dt = {dt:e} ({what} not finite; ‖A dt‖₁ = {:.6e}, ‖Qc dt‖₁ = {:.6e}): A is too large for this interval, or Qc is; use a shorter one",
             norm1(a) * dt,
             norm1(qc) * dt
         )

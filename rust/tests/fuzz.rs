@@ -4,8 +4,9 @@
 //! side has the same campaign with Hypothesis.
 
 use kfast::{
-    filter, filter_batch, forecast, propagate, smooth, smooth_fixed_lag, Batch, BatchOutputs, Error, FixedLagOptions,
-    FixedLagSmoother, LinearGaussian, Matrices, Series, StepMatrix, UpdateForm,
+    discretize, expm, filter, filter_batch, forecast, propagate, smooth, smooth_fixed_lag, solve_continuous_are,
+    solve_discrete_are, solve_discrete_lyapunov, stationary_covariance, Batch, BatchOutputs, DareMethod, Error,
+    FixedLagOptions, FixedLagSmoother, LinearGaussian, Matrices, RiccatiProblem, Series, StepMatrix, UpdateForm,
 };
 use proptest::prelude::*;
 use std::sync::Arc;
@@ -159,6 +160,45 @@ proptest! {
         let out = BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll };
         if let Err(e) = filter_batch(&model, batch, out, threads) {
             prop_assert!(named(&e));
+        }
+    }
+
+    #[test]
+    fn expm_of_any_matrix(n in size(), a in numbers(10)) {
+        match expm(&a, n) {
+            Ok(e) => prop_assert!(e.iter().all(|v| !v.is_nan())),
+            Err(e) => prop_assert!(named(&e)),
+        }
+    }
+
+    #[test]
+    fn discretize_with_any_sizes(n in size(), a in numbers(10), qc in numbers(10), dt in number()) {
+        match discretize(&a, &qc, None, n, 0, dt) {
+            Ok(d) => prop_assert!(d.f.iter().chain(&d.qd).all(|v| v.is_finite())),
+            Err(e) => prop_assert!(named(&e)),
+        }
+    }
+
+    #[test]
+    fn riccati_and_lyapunov_with_any_sizes(
+        (n, m) in (size(), size()),
+        a in numbers(10), b in numbers(6), q in numbers(10), r in numbers(5),
+        method in prop_oneof![
+            Just(DareMethod::Doubling), Just(DareMethod::Newton), Just(DareMethod::Iteration), Just(DareMethod::Eigen)
+        ],
+    ) {
+        let problem = RiccatiProblem::new(&a, &b, &q, &r, n, m);
+        for solved in [solve_discrete_are(problem, method), solve_continuous_are(problem)] {
+            match solved {
+                Ok(sol) => prop_assert!(sol.x.iter().all(|v| v.is_finite())),
+                Err(e) => prop_assert!(named(&e)),
+            }
+        }
+        for solved in [solve_discrete_lyapunov(&a, &q, n), stationary_covariance(&a, &q, n)] {
+            match solved {
+                Ok(x) => prop_assert!(x.iter().all(|v| v.is_finite())),
+                Err(e) => prop_assert!(named(&e)),
+            }
         }
     }
 }

@@ -55,7 +55,7 @@ def test_b4_no_steady_state_raises():
     # The Lyapunov equation itself has the solution -1/2, which is not a covariance.
     assert kfast.solve_continuous_lyapunov([[1.0]], [[-1.0]]).item() == pytest.approx(c["continuous"]["lyapunov_solution"])
     walk = kfast.LinearGaussian(c["discrete"]["F"], 1.0, c["discrete"]["Q"], 1.0)
-    with pytest.raises(kfast.KfastError, match=r"^F: is not stable \(spectral radius 1.000000\)"):
+    with pytest.raises(kfast.KfastError, match=r"^F: is not stable \(spectral radius 1.000000e0\)"):
         walk.stationary_cov()
     with pytest.raises(kfast.KfastError, match="no stationary covariance"):
         walk.autocovariance([0, 1])

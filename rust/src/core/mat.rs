@@ -19,7 +19,7 @@ pub(crate) fn from_mat(m: &Mat<f64>) -> Vec<f64> {
 /// The row-major `v` as a `rows × cols` faer matrix, after checking its size and that every
 /// entry is finite (`arg` names it in errors).
 pub(crate) fn checked_mat(arg: &'static str, v: &[f64], rows: usize, cols: usize) -> Result<Mat<f64>> {
-    if v.len() != rows * cols {
+    if rows.checked_mul(cols) != Some(v.len()) {
         return Err(Error::arg(arg, format!("expected shape ({rows}, {cols}), got {} entries", v.len())));
     }
     if let Some(x) = v.iter().find(|x| !x.is_finite()) {

@@ -10,6 +10,7 @@
 
 use par::*;
 
+use crate::core::alloc::check_f64_arrays;
 use crate::core::dims::{with_dims, Dims, Dyn};
 use crate::core::Series;
 use crate::error::{Error, Result};
@@ -86,16 +87,18 @@ fn thread_count(requested: Option<usize>, series: usize) -> usize {
 fn check_batch(model: &LinearGaussian, b: &Batch<'_>, out: &BatchOutputs<'_>, shared: bool) -> Result<()> {
     let (n, m, k) = (model.n_states(), model.n_obs(), model.n_inputs());
     let (bs, t) = (b.series, b.steps);
-    if b.y.len() != bs * t * m {
+    if bs.checked_mul(t).and_then(|bt| bt.checked_mul(m)) != Some(b.y.len()) {
         return Err(Error::arg("Y", format!("expected {bs} × {t} × {m} values, got {}", b.y.len())));
     }
     if bs == 0 {
         return Err(Error::arg("Y", "has no series (B = 0)"));
     }
-    if b.x0.len() != n && b.x0.len() != bs * n {
+    // B × T × max(n, k) fits in memory, so the products below cannot overflow.
+    check_f64_arrays("Y", &[&[bs, t, n.max(k)]])?;
+    if b.x0.len() != n && bs.checked_mul(n) != Some(b.x0.len()) {
         return Err(Error::arg("x0", format!("expected shape ({n},) or ({bs}, {n}), got {} values", b.x0.len())));
     }
-    if b.p0.len() != n * n && b.p0.len() != bs * n * n {
+    if b.p0.len() != n * n && bs.checked_mul(n * n) != Some(b.p0.len()) {
         return Err(Error::arg(
             "P0",
             format!("expected shape ({n}, {n}) or ({bs}, {n}, {n}), got {} values", b.p0.len()),
@@ -118,14 +121,15 @@ fn check_batch(model: &LinearGaussian, b: &Batch<'_>, out: &BatchOutputs<'_>, sh
         };
         checked.map_err(|e| prefix_series(e, s))?;
     }
-    let covs = if shared { t * n * n } else { bs * t * n * n };
+    let covs = if shared { Some(t * n * n) } else { (bs * t).checked_mul(n * n) };
     for (arg, got, want) in [
-        ("x_filt", Some(out.x_filt.len()), bs * t * n),
+        ("x_filt", Some(out.x_filt.len()), Some(bs * t * n)),
         ("P_filt", out.p_filt.as_ref().map(|p| p.len()), covs),
-        ("loglik", Some(out.loglik.len()), bs),
+        ("loglik", Some(out.loglik.len()), Some(bs)),
     ] {
         if let Some(got) = got {
-            if got != want {
+            if Some(got) != want {
+                let want = want.map_or("more than fit in memory".to_string(), |w| w.to_string());
                 return Err(Error::arg(arg, format!("output buffer has {got} entries, needs {want}")));
             }
         }

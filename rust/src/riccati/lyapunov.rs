@@ -43,7 +43,7 @@ pub fn stationary_covariance(f: &[f64], q: &[f64], n: usize) -> Result<Vec<f64>>
     if rho >= 1.0 - 1e-12 {
         return Err(Error::arg(
             "F",
-            format!("is not stable (spectral radius {rho:.6}): the state has no stationary covariance"),
+            format!("is not stable (spectral radius {rho:.6e}): the state has no stationary covariance"),
         ));
     }
     solve_with_schur(&schur, &qm, q, Kind::Discrete)
@@ -130,7 +130,7 @@ fn no_unique_solution(schur: &RealSchur, kind: Kind) -> Error {
         Kind::Continuous => "two eigenvalues of a have λ_i + λ_j = 0",
     };
     let rho = spectral_radius(schur);
-    Error::arg("a", format!("the Lyapunov equation has no unique solution: {what} (spectral radius {rho:.6})"))
+    Error::arg("a", format!("the Lyapunov equation has no unique solution: {what} (spectral radius {rho:.6e})"))
 }
 
 /// Solves the ≤ 2×2 block equation for Y (p × q): discrete Y − A Y B' = rhs, continuous
