@@ -26,7 +26,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
-DOC = ROOT / "docs" / "reliability.md"
+DOC = ROOT / "docs/reliability.md"
 BEGIN, END = "<!-- report:begin -->", "<!-- report:end -->"
 
 sys.path.insert(0, str(HERE))

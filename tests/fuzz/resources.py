@@ -7,6 +7,7 @@ check fails.
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 
@@ -44,11 +45,16 @@ def _in_threads(fn, n_threads: int, timeout: float = 120.0) -> list:
             results[i] = exc
 
     threads = [threading.Thread(target=body, args=(i,), daemon=True) for i in range(n_threads)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(timeout)
-        assert not t.is_alive(), f"a thread did not finish within {timeout} s (deadlock?)"
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads as often as possible: interleave the calls
+    try:
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout)
+            assert not t.is_alive(), f"a thread did not finish within {timeout} s (deadlock?)"
+    finally:
+        sys.setswitchinterval(interval)
     return results
 
 
