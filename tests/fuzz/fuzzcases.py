@@ -236,9 +236,10 @@ _ENTRY_LIST = [
             Arg("H", "np.eye(2, 3) + 0.5", shape=(2, 3), stackable=True),
             Arg("Q", "np.eye(3)", shape=(3, 3), cov=True, stackable=True, names=("Q", "N")),
             Arg("R", "np.eye(2)", shape=(2, 2), cov=True, stackable=True, names=("R", "N")),
-            Arg("B", "np.ones((3, 2))", shape=(3, 2), stackable=True),
-            Arg("D", "np.ones((2, 2))", shape=(2, 2), stackable=True),
-            Arg("N", "0.1 * np.eye(3, 2)", shape=(3, 2), stackable=True),
+            # B, D, N default to None (no inputs, no cross-covariance): None is valid
+            Arg("B", "np.ones((3, 2))", shape=(3, 2), stackable=True, none_ok=True),
+            Arg("D", "np.ones((2, 2))", shape=(2, 2), stackable=True, none_ok=True),
+            Arg("N", "0.1 * np.eye(3, 2)", shape=(3, 2), stackable=True, none_ok=True),
         ),
     ),
     Entry("filter", "io", "M.filter({kw})", (*_IO, _FORM, Arg("converge_tol", "None", kind="float", optional=True),
