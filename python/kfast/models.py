@@ -37,7 +37,9 @@ from typing import Callable, Dict, NamedTuple, Optional, Sequence, Union
 import numpy as np
 
 from kfast import _kfast
+from kfast._args import index
 from kfast._arrays import as_float64
+from kfast._numbers import integer_lags, powers_applied
 from kfast.linear.model import LinearGaussian
 from kfast.sampling import discretize
 
@@ -97,10 +99,48 @@ def _nonneg(name: str, value) -> float:
     return x
 
 
-def _dim(dim) -> int:
-    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim < 1:
+def _dim(dim, orders: int) -> int:
+    """The number of axes: an integer >= 1 such that the model's matrices (``orders * dim``
+    states) fit in memory."""
+    d = index("dim", dim)
+    if d < 1:
         raise KfastError(f"dim: expected an integer >= 1, got {dim!r}")
-    return int(dim)
+    n = orders * d
+    if n >= 2**32:  # n * n elements would overflow 64 bits
+        raise KfastError(f"dim: is too large ({d}): the model's {n} x {n} matrices would not fit in memory")
+    # F, Q, H, R (n x n at most) with their working copies (kron, the rows of H selected from
+    # I_n, LinearGaussian's and the core's copies), and I_dim
+    _kfast.check_alloc("dim", [[n, n]] * 12 + [[d, d]] * 2)
+    return d
+
+
+def _require_finite(names: str, what: str, *values) -> None:
+    """Refuse a model quantity that overflowed (inf or NaN computed from finite parameters),
+    naming the parameters it comes from (not F or Q, which the user did not pass)."""
+    if not all(np.all(np.isfinite(v)) for v in values):
+        raise KfastError(f"{names}: {what} is out of the range of double precision (overflow)")
+
+
+def _evaluate(names: str, what: str, compute: Callable[[], tuple]) -> tuple:
+    """``compute()`` (a tuple of numbers or arrays), refused naming ``names`` when it
+    overflows: Python floats raise OverflowError (x ** 3) or ZeroDivisionError (1 / 1e-300**2)
+    where NumPy gives inf."""
+    try:
+        values = compute()
+    except (OverflowError, ZeroDivisionError):
+        raise KfastError(f"{names}: {what} is out of the range of double precision (overflow)") from None
+    _require_finite(names, what, *values)
+    return values
+
+
+def _discretize_checked(A: np.ndarray, Qc: np.ndarray, h, names_F: str, names_Q: str):
+    """``discretize(A, Qc, h)`` (F, Qd), refused when the exact discretization overflows,
+    naming the parameters of F (``names_F``) or of Qd (``names_Q``)."""
+    F, Qd, _ = discretize(A, Qc, h)
+    scale = f"(|A| dt = {np.abs(A).max() * np.max(h):.3g})"
+    _require_finite(names_F, f"the exact discretization e^(A dt) {scale}", F)
+    _require_finite(names_Q, f"the exact discretization of the noise intensity {scale}", Qd)
+    return F, Qd
 
 
 def _per_axis(name: str, value, dim: int) -> np.ndarray:
@@ -147,6 +187,8 @@ def _R(r, m: int) -> np.ndarray:
         return np.eye(m) * _nonneg("r", arr)
     if arr.shape != (m, m):
         raise KfastError(f"r: expected a variance or an ({m}, {m}) covariance matrix, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise KfastError("r: must be finite")
     return arr  # LinearGaussian checks symmetry and positive semidefiniteness
 
 
@@ -172,6 +214,7 @@ class Continuous(NamedTuple):
         if np.ndim(dt) == 0:
             dt = _positive("dt", dt)
         F, Qd, _ = discretize(self.A, self.Qc, dt)
+        _require_finite("dt", "the exact discretization", F, Qd)
         return LinearGaussian(F, self.H, Qd, _R(r, self.H.shape[0]))
 
 
@@ -189,7 +232,7 @@ def _cont_random_ramp(observe=0) -> Continuous:
 
 
 def _cont_polynomial(order: int, dim, q, observe) -> Continuous:
-    dim = _dim(dim)
+    dim = _dim(dim, order)
     qa = _per_axis("q", q, dim)
     obs = _observe(observe, order)
     A1 = np.eye(order, k=1)
@@ -200,29 +243,40 @@ def _cont_polynomial(order: int, dim, q, observe) -> Continuous:
 
 def _cont_gauss_markov_1(sigma2, beta) -> Continuous:
     s2, b = _nonneg("sigma2", sigma2), _positive("beta", beta)
+    _require_finite("sigma2, beta", f"the intensity 2 sigma2 beta = 2 * {s2:g} * {b:g}", 2 * s2 * b)
     return Continuous(np.full((1, 1), -b), np.full((1, 1), 2 * s2 * b), np.ones((1, 1)))
 
 
 def _cont_gauss_markov_2(omega_n, zeta, q, observe=0) -> Continuous:
     wn, z, qq = _positive("omega_n", omega_n), _positive("zeta", zeta), _nonneg("q", q)
+    _require_finite("omega_n", f"omega_n^2 = {wn:g}^2", wn * wn)
+    _require_finite("zeta, omega_n", f"2 zeta omega_n = 2 * {z:g} * {wn:g}", 2 * z * wn)
     A = np.array([[0.0, 1.0], [-wn * wn, -2 * z * wn]])
     return Continuous(A, np.diag([0.0, qq]), _H(_observe(observe, 2), 2, 1))
 
 
 def _cont_damped_resonator(omega, tau, q, observe=0) -> Continuous:
     w, t, qq = _positive("omega", omega), _positive("tau", tau), _nonneg("q", q)
-    A = np.array([[0.0, 1.0], [-(w * w + 1 / (t * t)), -2 / t]])
-    return Continuous(A, np.diag([0.0, qq]), _H(_observe(observe, 2), 2, 1))
+    return Continuous(_resonator_A(w, t), np.diag([0.0, qq]), _H(_observe(observe, 2), 2, 1))
+
+
+def _resonator_A(w: float, t: float) -> np.ndarray:
+    """A = [[0, 1], [-(ω² + 1/τ²), -2/τ]], refused naming omega or tau when it overflows."""
+    _require_finite("omega", f"omega^2 = {w:g}^2", w * w)
+    _evaluate("tau", f"1/tau^2 = 1/{t:g}^2", lambda: (1 / (t * t),))
+    _require_finite("omega, tau", f"omega^2 + 1/tau^2 (omega = {w:g}, tau = {t:g})", w * w + 1 / (t * t))
+    return np.array([[0.0, 1.0], [-(w * w + 1 / (t * t)), -2 / t]])
 
 
 def _singer_axis(alpha, sigma_m2):
     a, s2 = _positive("alpha", alpha), _nonneg("sigma_m2", sigma_m2)
+    _require_finite("sigma_m2, alpha", f"the intensity 2 alpha sigma_m2 = 2 * {a:g} * {s2:g}", 2 * a * s2)
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -a]])
     return A, np.diag([0.0, 0.0, 2 * a * s2])
 
 
 def _cont_singer(alpha, sigma_m2, dim=1, observe=0) -> Continuous:
-    dim = _dim(dim)
+    dim = _dim(dim, 3)
     A, Qc = _singer_axis(alpha, sigma_m2)
     return Continuous(_kron_axes(A, dim), _kron_axes(Qc, dim), _H(_observe(observe, 3), 3, dim))
 
@@ -338,6 +392,7 @@ def random_walk(dt, q=1.0, r=1.0) -> LinearGaussian:
     """
     h = _positive("dt", dt)
     qq = _nonneg("q", q)
+    _require_finite("q, dt", f"the process noise variance q dt = {qq:g} * {h:g}", qq * h)
     return LinearGaussian(1.0, 1.0, qq * h, _R(r, 1))
 
 
@@ -373,14 +428,17 @@ def constant_velocity(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> LinearGaus
     Cov(x(t), x(s)) = Φ(t) P0 Φ(s)' + q [[t s²/2 − s³/6, t s − s²/2], [s²/2, s]]
     (rows: p(t), v(t); columns p(s), v(s)). Nonstationary (the position grows like q t³/3).
     """
-    dim = _dim(dim)
+    dim = _dim(dim, 2)
     h = _positive("dt", dt)
     qa = _per_axis("q", q, dim)
     obs = _observe(observe, 2)
     F1 = np.array([[1.0, h], [0.0, 1.0]])
-    Q1 = np.array([[h**3 / 3, h**2 / 2], [h**2 / 2, h]])
+    (Q1,) = _evaluate("dt", f"the exact discrete model (dt^3/3 in Q, dt = {h:g})", lambda: (np.array([[h**3 / 3, h**2 / 2], [h**2 / 2, h]]),))
     H = _H(obs, 2, dim)
-    return LinearGaussian(_kron_axes(F1, dim), H, _kron_axes(Q1, dim, qa), _R(r, H.shape[0]))
+    with np.errstate(over="ignore"):  # refused just below, naming q
+        Q = _kron_axes(Q1, dim, qa)
+    _require_finite("q, dt", f"the process noise q dt^3/3 (q up to {qa.max():g}, dt = {h:g})", Q)
+    return LinearGaussian(_kron_axes(F1, dim), H, Q, _R(r, H.shape[0]))
 
 
 def constant_acceleration(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> LinearGaussian:
@@ -395,20 +453,29 @@ def constant_acceleration(dim, dt, q=1.0, r=1.0, observe: Observe = 0) -> Linear
     Covariance: P(k) = F^k P0 F'^k + Σ_{j<k} F^j Qd F'^j, Cov(x[k], x[l]) = F^{k−l} P(l),
     k ≥ l. Nonstationary.
     """
-    dim = _dim(dim)
+    dim = _dim(dim, 3)
     h = _positive("dt", dt)
     qa = _per_axis("q", q, dim)
     obs = _observe(observe, 3)
-    F1 = np.array([[1.0, h, h * h / 2], [0.0, 1.0, h], [0.0, 0.0, 1.0]])
-    Q1 = np.array(
-        [
-            [h**5 / 20, h**4 / 8, h**3 / 6],
-            [h**4 / 8, h**3 / 3, h**2 / 2],
-            [h**3 / 6, h**2 / 2, h],
-        ]
+    F1, Q1 = _evaluate(
+        "dt",
+        f"the exact discrete model (dt^5/20 in Q, dt = {h:g})",
+        lambda: (
+            np.array([[1.0, h, h * h / 2], [0.0, 1.0, h], [0.0, 0.0, 1.0]]),
+            np.array(
+                [
+                    [h**5 / 20, h**4 / 8, h**3 / 6],
+                    [h**4 / 8, h**3 / 3, h**2 / 2],
+                    [h**3 / 6, h**2 / 2, h],
+                ]
+            ),
+        ),
     )
     H = _H(obs, 3, dim)
-    return LinearGaussian(_kron_axes(F1, dim), H, _kron_axes(Q1, dim, qa), _R(r, H.shape[0]))
+    with np.errstate(over="ignore"):  # refused just below, naming q
+        Q = _kron_axes(Q1, dim, qa)
+    _require_finite("q, dt", f"the process noise q dt^5/20 (q up to {qa.max():g}, dt = {h:g})", Q)
+    return LinearGaussian(_kron_axes(F1, dim), H, Q, _R(r, H.shape[0]))
 
 
 def gauss_markov_1(sigma2, beta, dt, r=1.0) -> LinearGaussian:
@@ -446,7 +513,7 @@ def gauss_markov_2(omega_n, zeta, q, dt, r=1.0, observe: Observe = 0) -> LinearG
     """
     h = _positive("dt", dt)
     cm = _cont_gauss_markov_2(omega_n, zeta, q, observe)
-    F, Qd, _ = discretize(cm.A, cm.Qc, h)
+    F, Qd = _discretize_checked(cm.A, cm.Qc, h, "dt, omega_n, zeta", "q, dt, omega_n, zeta")
     return LinearGaussian(F, cm.H, Qd, _R(r, cm.H.shape[0]))
 
 
@@ -479,7 +546,9 @@ def damped_resonator(omega, tau, q, dt, r=1.0, observe: Observe = 0) -> LinearGa
     q12 = q21 = q E S² / (2ω²),
     q22 = q [ω²τ²(1 − E) − 2 S E (S − ωτ C)] / (4ω²τ)
     (Qd is full though Qc is sparse; q11 is a difference of O(h) terms, so its relative
-    accuracy degrades like ε/(h/τ)² for h ≪ τ, 1/ω — use ``gauss_markov_2`` (Van Loan) there).
+    accuracy degrades like ε/(h/τ)² for h ≪ τ, 1/ω — use ``gauss_markov_2`` (Van Loan) there;
+    where the closed form over- or underflows, e.g. ω → 0 or τ → ∞, F and Qd are computed by
+    Van Loan instead).
     Stationary P∞ = diag(qτ / (4(ω² + 1/τ²)), qτ/4). Position ψ(τ') = P∞[0,0] e^{−|τ'|/τ}
     [cos ω|τ'| + sin(ω|τ'|)/(ωτ)] (``damped_resonator_autocovariance``); PSD (two-sided,
     rad/s) Φ(ω') = q / ((ω_n² − ω'²)² + 4ω'²/τ²). ``observe`` 0 = position (default),
@@ -488,7 +557,15 @@ def damped_resonator(omega, tau, q, dt, r=1.0, observe: Observe = 0) -> LinearGa
     w, t, qq = _positive("omega", omega), _positive("tau", tau), _nonneg("q", q)
     h = _positive("dt", dt)
     obs = _observe(observe, 2)
-    F, Qd = _resonator_discrete(w, t, qq, h)
+    A = _resonator_A(w, t)
+    try:
+        F, Qd = _resonator_discrete(w, t, qq, h)
+        closed_form = bool(np.all(np.isfinite(F)) and np.all(np.isfinite(Qd)))
+    except (OverflowError, ZeroDivisionError):
+        closed_form = False
+    if not closed_form:  # e.g. omega -> 0 or tau -> inf: the exact discretization by Van Loan
+        F, Qd = _discretize_checked(A, np.diag([0.0, qq]), h, "omega, tau, dt", "q, omega, tau, dt")
+        Qd = (Qd + Qd.T) / 2
     H = _H(obs, 2, 1)
     return LinearGaussian(F, H, Qd, _R(r, H.shape[0]))
 
@@ -508,10 +585,10 @@ def singer(dt, alpha, sigma_m2, r=1.0, dim=1, observe: Observe = 0) -> LinearGau
     velocity are nonstationary (integrals of it): no stationary covariance.
     """
     h = _positive("dt", dt)
-    dim = _dim(dim)
+    dim = _dim(dim, 3)
     A, Qc = _singer_axis(alpha, sigma_m2)
     obs = _observe(observe, 3)
-    F1, Q1, _ = discretize(A, Qc, h)
+    F1, Q1 = _discretize_checked(A, Qc, h, "dt, alpha", "sigma_m2, dt, alpha")
     Q1 = (Q1 + Q1.T) / 2
     H = _H(obs, 3, dim)
     return LinearGaussian(_kron_axes(F1, dim), H, _kron_axes(Q1, dim), _R(r, H.shape[0]))
@@ -686,11 +763,13 @@ def gauss_markov_2_autocovariance(lag, omega_n, zeta, q, r=0.0):
     ``lag`` = τ, plus ``r`` at τ = 0."""
     t = np.abs(_lags(lag))
     wn, z, qq = _positive("omega_n", omega_n), _positive("zeta", zeta), _nonneg("q", q)
-    var = qq / (4 * z * wn**3)
+    (var,) = _evaluate("omega_n, zeta, q", f"the variance q/(4 zeta omega_n^3) = {qq:g}/(4 * {z:g} * {wn:g}^3)", lambda: (qq / (4 * z * wn**3),))
+    _require_finite("omega_n, zeta", f"omega_n^2 and (zeta omega_n)^2 (omega_n = {wn:g}, zeta = {z:g})", wn * wn, (z * wn) * (z * wn))
     if z == 1.0:
         psi = var * np.exp(-wn * t) * (1 + wn * t)
     else:
         psi = _second_order_acov(t, var, z * wn, wn)
+    _require_finite("omega_n, zeta", "the autocovariance", psi)
     return _plus_white(psi, t, r)
 
 
@@ -699,8 +778,11 @@ def damped_resonator_autocovariance(lag, omega, tau, q, r=0.0):
     ``damped_resonator`` at ``lag`` = τ', plus ``r`` at τ' = 0."""
     t = np.abs(_lags(lag))
     w, tt, qq = _positive("omega", omega), _positive("tau", tau), _nonneg("q", q)
-    var = qq * tt / (4 * (w * w + 1 / (tt * tt)))
-    psi = var * np.exp(-t / tt) * (np.cos(w * t) + np.sin(w * t) / (w * tt))
+    _resonator_A(w, tt)
+    (var,) = _evaluate("q, tau", f"the variance q tau/(4(omega^2 + 1/tau^2)) (q = {qq:g}, tau = {tt:g})", lambda: (qq * tt / (4 * (w * w + 1 / (tt * tt))),))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        psi = var * np.exp(-t / tt) * (np.cos(w * t) + np.sin(w * t) / (w * tt))
+    _require_finite("omega, tau", f"the autocovariance (omega tau = {w * tt:g})", psi)
     return _plus_white(psi, t, r)
 
 
@@ -720,10 +802,7 @@ def ar_autocovariance(lags, coeffs, noise_var, r=0.0):
     r(k) = −Σ_i a_i r(k−i) for k > p. Raises KfastError when the process is not stationary."""
     a = _ar_coeffs(coeffs)
     lam2 = _nonneg("noise_var", noise_var)
-    k = as_float64("lags", lags)
-    if not np.all(np.isfinite(k)) or np.any(k != np.round(k)):
-        raise KfastError(f"lags: expected integers, got {lags!r}")
-    k = np.abs(k).astype(np.int64)
+    k = np.abs(integer_lags("lags", lags))
     roots = np.roots(np.concatenate([[1.0], a]))
     if roots.size and np.max(np.abs(roots)) >= 1:
         raise KfastError(f"coeffs: not stationary (a zero of z^p + a1 z^(p-1) + ... has modulus {np.max(np.abs(roots)):.6g} >= 1)")
@@ -739,10 +818,28 @@ def ar_autocovariance(lags, coeffs, noise_var, r=0.0):
     rhs = np.zeros(p + 1)
     rhs[0] = lam2
     rr = np.linalg.solve(M, rhs)
-    kmax = int(k.max()) if k.size else 0
+    rv = _nonneg("r", r)
+    far = k > _AR_RECURSION_LIMIT
+    near = k[~far]
+    kmax = int(near.max()) if near.size else 0
     if kmax > p:
         rr = np.concatenate([rr, np.zeros(kmax - p)])
         for j in range(p + 1, kmax + 1):
             rr[j] = -np.dot(a, rr[j - p : j][::-1])
-    out = rr[k] + _nonneg("r", r) * (k == 0)
+    out = np.empty(k.shape)
+    out[~far] = rr[near]
+    if far.any():
+        # [r(p+j), ..., r(j+1)] = C^j [r(p), ..., r(1)], C the companion matrix of the
+        # recursion: any lag < 2**63 in O(log lag) products
+        C = np.zeros((p, p))
+        C[0] = -a
+        C[1:, :-1] = np.eye(p - 1)
+        powers = powers_applied(C, rr[p:0:-1], k[far] - p)
+        out[far] = [powers[j][0] for j in (k[far] - p).tolist()]
+    out = out + rv * (k == 0)
     return out if out.ndim else float(out)
+
+
+# Lags up to this are computed by the recursion r(k) = -sum_i a_i r(k-i) (an array of that
+# length), beyond it by powers of the companion matrix.
+_AR_RECURSION_LIMIT = 100_000

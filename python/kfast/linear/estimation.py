@@ -105,8 +105,11 @@ def fit(
     Raises
     ------
     KfastError
-        When ``build`` does not return (LinearGaussian, x0, P0), or the log-likelihood at
-        theta0 is not finite.
+        When ``build`` is not callable or does not return (LinearGaussian, x0, P0) with a
+        valid prior at theta0; when theta0 is not a non-empty finite 1-D array (a scalar is
+        one parameter); when the log-likelihood at theta0 is not finite (naming ``y`` when its
+        entries are too large for double precision, |y| > 1e154, else ``build``); or when the
+        optimizer leaves the finite numbers (rescale y or give ``bounds``).
 
     Notes
     -----
@@ -128,13 +131,13 @@ def fit(
     """
     from scipy.optimize import minimize
 
-    theta0 = as_float64("theta0", theta0).ravel()
+    if not callable(build):
+        raise KfastError(f"build: expected a callable build(theta) -> (model, x0, P0), got {type(build).__name__}")
+    theta0 = _fit_theta0(theta0)
     y = as_float64("y", y)
     u = None if u is None else as_float64("u", u)
     model0, x00, P00 = _build(build, theta0, "theta0")
-    ll0 = model0.loglik(y, x00, P00, u=u)
-    if not np.isfinite(ll0):
-        raise KfastError(f"build: the log-likelihood at theta0 is not finite ({ll0})")
+    ll0 = _fit_loglik0(model0, x00, P00, y, u)
 
     def loglik(theta):
         try:
@@ -149,10 +152,50 @@ def fit(
 
     opt = minimize(objective, theta0, method=method, bounds=bounds, options=options)
     theta = np.asarray(opt.x, dtype=float)
+    if not np.all(np.isfinite(theta)):
+        raise KfastError(
+            f"build: the optimizer left the finite numbers (theta = {theta}) from theta0 = {theta0}, where the "
+            f"log-likelihood is {ll0:.6g}: rescale y, reparametrize build or give bounds"
+        )
     hess = _hessian(loglik, theta)
     cov, se = _covariance(hess)
     model, x0, P0 = _build(build, theta, "the optimum")
     return FitResult(theta=theta, se=se, cov=cov, loglik=float(-opt.fun), model=model, x0=x0, P0=P0, optimizer=opt)
+
+
+def _fit_theta0(theta0: ArrayLike) -> np.ndarray:
+    """fit's starting point: a non-empty finite 1-D array (a scalar is one parameter)."""
+    theta = as_float64("theta0", theta0)
+    if theta.ndim == 0:
+        theta = theta.reshape(1)
+    if theta.ndim != 1 or theta.size == 0:
+        raise KfastError(f"theta0: expected a non-empty 1-D array of parameters, got shape {theta.shape}")
+    if not np.all(np.isfinite(theta)):
+        raise KfastError(f"theta0: must be finite, got {theta}")
+    return theta
+
+
+# Above this, y^2 is not a double: the log-likelihood of any model of moderate scale overflows.
+_Y_SQUARE_LIMIT = 1e154
+
+
+def _fit_loglik0(model: LinearGaussian, x0, P0, y: np.ndarray, u: Optional[np.ndarray]) -> float:
+    """The log-likelihood at theta0, with errors that say whether y or build is at fault."""
+    try:
+        ll0 = model.loglik(y, x0, P0, u=u)
+    except KfastError as exc:
+        if str(exc).startswith(("x0:", "P0:")):  # the prior comes from build
+            raise KfastError(f"build: theta0 gave an invalid prior: {exc}") from exc
+        raise
+    if not np.isfinite(ll0):
+        finite = np.abs(y[np.isfinite(y)])
+        largest = float(finite.max()) if finite.size else 0.0
+        if largest > _Y_SQUARE_LIMIT:
+            raise KfastError(
+                f"y: entries as large as {largest:.3g} make the log-likelihood at theta0 overflow ({ll0}): rescale y"
+            )
+        raise KfastError(f"build: the log-likelihood at theta0 is not finite ({ll0})")
+    return float(ll0)
 
 
 def _hessian(f: Callable, theta: np.ndarray) -> np.ndarray:

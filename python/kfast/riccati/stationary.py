@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._arrays import as_float64
+from kfast._numbers import integer_lags, positive_real, powers_applied
 from kfast._typing import DareMethod
 from kfast.riccati.solvers import dare
 
@@ -104,23 +105,23 @@ def stationary_cov(model: "LinearGaussian") -> np.ndarray:
 
 def autocovariance(model: "LinearGaussian", lags: ArrayLike) -> np.ndarray:
     """r_y(tau) for each tau in lags, shape (len(lags), m, m) (Söderström Lemma 4.2; with N,
-    r_y(tau) = H F^(tau-1) (F Pi H' + N) for tau >= 1, r_y(0) = H Pi H' + R)."""
-    lags = as_float64("lags", lags)
-    if lags.ndim > 1 or np.any(lags != np.round(lags)):
+    r_y(tau) = H F^(tau-1) (F Pi H' + N) for tau >= 1, r_y(0) = H Pi H' + R). ``lags`` are
+    integers with |tau| < 2**63 (floats with integer values are accepted); F^(tau-1) is
+    reached by repeated squaring, so a huge lag costs O(log tau) products."""
+    lags = integer_lags("lags", lags)
+    if lags.ndim > 1:
         raise _kfast.KfastError("lags: expected integers (a scalar or a 1-D array)")
-    lags = np.atleast_1d(lags).astype(int)
+    lags = np.atleast_1d(lags)
     Pi = stationary_cov(model)
     F, H = model.F, model.H
     N = model.N if model.N is not None else np.zeros((model.n_states, model.n_obs))
     out = np.empty((len(lags), model.n_obs, model.n_obs))
-    top = int(np.abs(lags).max()) if len(lags) else 0
     G = F @ Pi @ H.T + N  # F Pi H' + N
     by_lag = {0: H @ Pi @ H.T + model.R}
-    FkG = G
-    for k in range(1, top + 1):  # propagate F^(k-1) G: O(top n^2 m)
-        by_lag[k] = H @ FkG
-        FkG = F @ FkG
-    for i, tau in enumerate(lags):
+    magnitudes = np.abs(lags)
+    for k, FkG in powers_applied(F, G, magnitudes[magnitudes >= 1] - 1).items():
+        by_lag[k + 1] = H @ FkG  # H F^k G = r_y(k + 1)
+    for i, tau in enumerate(lags.tolist()):
         out[i] = by_lag[abs(tau)] if tau >= 0 else by_lag[-tau].T
     return out
 
@@ -133,8 +134,13 @@ def spectral_density(model: "LinearGaussian", omega: ArrayLike, h: float = 1.0) 
     omega = np.atleast_1d(as_float64("omega", omega))
     if omega.ndim != 1:
         raise _kfast.KfastError(f"omega: expected a scalar or a 1-D array, got shape {omega.shape}")
-    if not (np.isfinite(h) and h > 0):
-        raise _kfast.KfastError(f"h: must be positive, got {h}")
+    if not np.all(np.isfinite(omega)):
+        raise _kfast.KfastError(f"omega: must be finite, got {omega[~np.isfinite(omega)][0]}")
+    h = positive_real("h", h)
+    with np.errstate(over="ignore"):
+        largest_angle = np.abs(omega).max(initial=0.0) * h
+    if not np.isfinite(largest_angle):
+        raise _kfast.KfastError(f"omega: omega * h overflows (max |omega| = {np.abs(omega).max():.3g}, h = {h:.3g})")
     n, m = model.n_states, model.n_obs
     N = model.N if model.N is not None else np.zeros((n, m))
     J = np.block([[model.Q, N], [N.T, model.R]])
