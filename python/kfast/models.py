@@ -136,7 +136,10 @@ def _evaluate(names: str, what: str, compute: Callable[[], tuple]) -> tuple:
 def _discretize_checked(A: np.ndarray, Qc: np.ndarray, h, names_F: str, names_Q: str):
     """``discretize(A, Qc, h)`` (F, Qd), refused when the exact discretization overflows,
     naming the parameters of F (``names_F``) or of Qd (``names_Q``)."""
-    F, Qd, _ = discretize(A, Qc, h)
+    try:
+        F, Qd, _ = discretize(A, Qc, h)
+    except KfastError as exc:  # the interval is too long for the rates: name the parameters
+        raise KfastError(f"{names_F}: {str(exc).split(': ', 1)[-1]}") from None
     scale = f"(|A| dt = {np.abs(A).max() * np.max(h):.3g})"
     _require_finite(names_F, f"the exact discretization e^(A dt) {scale}", F)
     _require_finite(names_Q, f"the exact discretization of the noise intensity {scale}", Qd)

@@ -350,6 +350,7 @@ fn discretize_mat(
     dt: f64,
 ) -> std::result::Result<Discretized, String> {
     let n = a.nrows();
+    check_resolvable(a, dt)?;
     let overflow = |what: &str| {
         format!(
             "the sampled model overflows double precision at dt = {dt:e} ({what} not finite; ‖A dt‖₁ = {:.6e}, ‖Qc dt‖₁ = {:.6e}): A is too large for this interval, or Qc is; use a shorter one",
@@ -414,6 +415,41 @@ fn discretize_mat(
         (Some(f), Some(qd), Some(bd)) => Ok(Discretized { f: from_mat(&f), qd: from_mat(&qd), bd }),
         _ => Err(overflow("F, Qd or Bd")),
     }
+}
+
+/// Refuses an interval over which a mode of A that does not decay meets a norm ‖A dt‖ beyond
+/// 1/ε. The doublings F(2h) = F(h)² then number more than 52 and multiply the rounding error of
+/// every mode that is not damped by 2ˢ ε ≥ 1: the Singer model at α dt = 1e299 came out as
+/// F = 0 (exact: its position and velocity rows keep their ones). Modes that decay over dt
+/// (real part below −ε‖A‖, the accuracy of the computed eigenvalues) damp their errors too,
+/// so a stable model sampled over any interval stays exact (F → 0, Qd → the stationary
+/// covariance), as does a nilpotent one (no scaling at all) and a diagonal one.
+fn check_resolvable(a: &Mat<f64>, dt: f64) -> std::result::Result<(), String> {
+    let norm = norm1(a);
+    let diagonal = (0..a.nrows()).all(|i| (0..a.ncols()).all(|j| i == j || a[(i, j)] == 0.0));
+    if norm * dt * f64::EPSILON <= 1.0 || diagonal || nilpotent(a) {
+        return Ok(());
+    }
+    let schur = crate::core::schur::real_schur(a)?;
+    let slowest = schur.eigenvalues().iter().map(|(re, _)| *re).fold(f64::NEG_INFINITY, f64::max);
+    if slowest < -f64::EPSILON * norm * a.nrows() as f64 {
+        return Ok(());
+    }
+    Err(format!(
+        "A is too large for this interval: ‖A dt‖₁ = {:.3e} exceeds 1/ε = 4.5e15 while a mode of A \
+         does not decay (eigenvalue real part {slowest:.3e}), so the sampled model would have no \
+         correct digit; use a shorter interval or rescale A",
+        norm * dt
+    ))
+}
+
+/// Whether some power of `a` (at most its size) is zero: then its exponential is a finite sum.
+fn nilpotent(a: &Mat<f64>) -> bool {
+    let mut power = a.clone();
+    for _ in 1..a.nrows() {
+        power = &power * a;
+    }
+    (0..a.nrows()).all(|i| (0..a.ncols()).all(|j| power[(i, j)] == 0.0))
 }
 
 /// (M + M') / 2.

@@ -9,6 +9,7 @@ use kfast::{
     FixedLagOptions, FixedLagSmoother, LinearGaussian, Matrices, RiccatiProblem, Series, StepMatrix, UpdateForm,
 };
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 use std::sync::Arc;
 
 /// Sizes that are small, zero, or large enough to overflow an allocation.
@@ -53,7 +54,13 @@ fn cv() -> LinearGaussian {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+    // A fixed seed: the same cases on every run (CI stays reproducible; change the seed to explore).
+    #![proptest_config(ProptestConfig {
+        cases: 256,
+        failure_persistence: None,
+        rng_seed: RngSeed::Fixed(0x6b66_6173_74),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn matrices_and_models_from_arbitrary_shapes(
@@ -183,9 +190,10 @@ proptest! {
     fn riccati_and_lyapunov_with_any_sizes(
         (n, m) in (size(), size()),
         a in numbers(10), b in numbers(6), q in numbers(10), r in numbers(5),
-        method in prop_oneof![
-            Just(DareMethod::Doubling), Just(DareMethod::Newton), Just(DareMethod::Iteration), Just(DareMethod::Eigen)
-        ],
+        // Not DareMethod::Iteration: on a divergent input (an indefinite q) it runs to its cap of
+        // 200,000 steps, seconds per call in a debug build; the Python campaign (release build,
+        // with timeouts) covers it.
+        method in prop_oneof![Just(DareMethod::Doubling), Just(DareMethod::Newton), Just(DareMethod::Eigen)],
     ) {
         let problem = RiccatiProblem::new(&a, &b, &q, &r, n, m);
         for solved in [solve_discrete_are(problem, method), solve_continuous_are(problem)] {

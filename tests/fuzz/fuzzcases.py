@@ -551,7 +551,14 @@ def sanity(result, result_name: str = "result", inf_ok: bool = False) -> Optiona
     import numpy as np
 
     found = {}
-    for name, a in leaves(result, result_name):
+    leaf_list = list(leaves(result, result_name))
+    # The problem's covariance scale: a smoothed covariance far below the prediction's (an
+    # almost exactly known state) carries rounding errors of the prediction's size.
+    problem_scale = max(
+        (float(np.abs(a).max()) for name, a in leaf_list if _last(name) == "P_pred" and a.size and np.isfinite(a).all()),
+        default=0.0,
+    )
+    for name, a in leaf_list:
         last = _last(name)
         found[name] = a
         if a.dtype.kind not in "fc":
@@ -562,7 +569,7 @@ def sanity(result, result_name: str = "result", inf_ok: bool = False) -> Optiona
             if not (last in _NEG_INF_OK and not np.isposinf(a).any()):
                 return "silent-inf", f"{name} has inf"
         if last in _COV_FIELDS and a.ndim >= 2 and a.shape[-1] == a.shape[-2] and a.size and np.isfinite(a).all():
-            bad = _not_psd(a)
+            bad = _not_psd(a, scale=max(float(np.abs(a).max()), problem_scale))
             if bad:
                 return "garbage", f"{name} {bad}"
     for low, high in (("P_filt", "P_pred"), ("P_smooth", "filter.P_filt")):

@@ -14,9 +14,10 @@ from fuzzcases import ENTRIES, Case
 from isolation import format_failure
 
 
-def _expr_case(fixture_entry: str, e: str, variant: str, reference=None, rtol=1e-12) -> Case:
+def _expr_case(fixture_entry: str, e: str, variant: str, reference=None, rtol=1e-12, names=("S", "R", "Q")) -> Case:
+    """``names``: the arguments a clear error may name (expm's overflow error names ``a``)."""
     entry = ENTRIES[fixture_entry]
-    return Case(entry=entry.name, fixture=entry.fixture, args=(("e", e),), perturbed="e", names=("S", "R", "Q"),
+    return Case(entry=entry.name, fixture=entry.fixture, args=(("e", e),), perturbed="e", names=names,
                 family="numerics", variant=variant, expect="either", reference=None if reference is None else {"e": reference}, rtol=rtol)
 
 
@@ -56,14 +57,14 @@ def expm_case(draw) -> Case:
     if kind == "symmetric" and size <= 700:
         head += f"Qm := np.linalg.qr(rng.standard_normal(({n}, {n})))[0], lam := {size} * rng.uniform(-1, 1, {n}), "
         return _expr_case("expression_ric", head + "kfast.expm(Qm @ np.diag(lam) @ Qm.T))[-1]", f"symmetric n={n} size {size}",
-                          reference=head + "Qm @ np.diag(np.exp(lam)) @ Qm.T)[-1]", rtol=1e-8)
+                          reference=head + "Qm @ np.diag(np.exp(lam)) @ Qm.T)[-1]", rtol=1e-8, names=("a",))
     if kind == "nilpotent":
         head += f"N := np.triu({size} * rng.uniform(-1, 1, ({n}, {n})), 1), "
         exact = f"np.eye({n}) + N + N @ N / 2 + N @ N @ N / 6"
-        return _expr_case("expression_ric", head + "kfast.expm(N))[-1]", f"nilpotent n={n} size {size}", reference=head + exact + ")[-1]", rtol=1e-10)
+        return _expr_case("expression_ric", head + "kfast.expm(N))[-1]", f"nilpotent n={n} size {size}", reference=head + exact + ")[-1]", rtol=1e-10, names=("a",))
     head += f"lam := {size} * rng.uniform(-1, 1, {n}), "
     return _expr_case("expression_ric", head + "kfast.expm(np.diag(lam)))[-1]", f"diagonal n={n} size {size}",
-                      reference=head + "np.diag(np.exp(lam)))[-1]", rtol=1e-12)
+                      reference=head + "np.diag(np.exp(lam)))[-1]", rtol=1e-12, names=("a",))
 
 
 def _run_all(strategy, worker, fuzz_settings):

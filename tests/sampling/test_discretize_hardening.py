@@ -323,3 +323,19 @@ def test_continuous_time_entry_points_name_the_argument(which, override, pattern
         call = kfast.stationary_cov_continuous
     with pytest.raises(kfast.KfastError, match=pattern):
         call(**dict(good, **override))
+
+
+def test_a_mode_that_does_not_decay_with_a_huge_norm_is_refused():
+    """The Singer model at alpha dt = 1e299 (eigenvalues 0, 0, -alpha): more than 52 doublings
+    multiply the rounding of the undamped position/velocity modes beyond any accuracy; it came
+    out as F = 0. Refused naming A (the catalogue names alpha)."""
+    alpha = 1e300
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -alpha]])
+    with pytest.raises(kfast.KfastError, match=r"^dt: A is too large for this interval.*does not decay"):
+        kfast.discretize(A, np.diag([0.0, 0.0, 1.0]), 0.1)
+    with pytest.raises(kfast.KfastError, match=r"^alpha\b|^dt, alpha\b"):
+        kfast.models.singer(dt=0.1, alpha=alpha, sigma_m2=1.0)
+    # A moderate alpha dt keeps the closed-form position row: F[0] = [1, dt, (a dt - 1 + e^-a dt) / a^2].
+    dt, a = 0.1, 1e6
+    F, _, _ = kfast.discretize([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -a]], np.diag([0.0, 0.0, 1.0]), dt)
+    np.testing.assert_allclose(F[0], [1.0, dt, (a * dt - 1 + np.exp(-a * dt)) / a**2], rtol=1e-9)
