@@ -96,17 +96,16 @@ pub(crate) fn mul_bt_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
+    let chunks = k / 4;
     let mut acc = [0.0; 4];
-    let mut ca = a.chunks_exact(4);
-    let mut cb = b.chunks_exact(4);
-    for (pa, pb) in (&mut ca).zip(&mut cb) {
+    for c in 0..chunks {
         for l in 0..4 {
-            acc[l] += pa[l] * pb[l];
+            acc[l] += a[4 * c + l] * b[4 * c + l];
         }
     }
     let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
-    for (p, q) in ca.remainder().iter().zip(cb.remainder()) {
-        s += p * q;
+    for i in 4 * chunks..k {
+        s += a[i] * b[i];
     }
     s
 }
