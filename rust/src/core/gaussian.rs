@@ -121,8 +121,7 @@ impl<D: Dims> GaussianUpdate<D> {
     ) -> Result<()> {
         let n = d.n();
         let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
-        s_factor.copy_from_slice(&pred.innov_cov[..mo * mo]);
-        if let Err(j) = ldl(s_factor, mo) {
+        if let Err(j) = ldl(s_factor, &pred.innov_cov[..mo * mo], mo) {
             return Err(not_positive_definite(t, j, mo));
         }
         let s_factor = &self.s_factor.get()[..mo * mo];
