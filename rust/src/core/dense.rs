@@ -96,17 +96,16 @@ pub(crate) fn mul_bt_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
+    let chunks = k / 4;
     let mut acc = [0.0; 4];
-    let mut ca = a.chunks_exact(4);
-    let mut cb = b.chunks_exact(4);
-    for (pa, pb) in (&mut ca).zip(&mut cb) {
+    for c in 0..chunks {
         for l in 0..4 {
-            acc[l] += pa[l] * pb[l];
+            acc[l] += a[4 * c + l] * b[4 * c + l];
         }
     }
     let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
-    for (p, q) in ca.remainder().iter().zip(cb.remainder()) {
-        s += p * q;
+    for i in 4 * chunks..k {
+        s += a[i] * b[i];
     }
     s
 }
@@ -197,12 +196,15 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
     }
 }
 
-/// Square-root-free Cholesky factorization `a = L D L'` in place (Golub & Van Loan, *Matrix
-/// Computations*, Algorithm 4.1.2): on success the strict lower triangle of `a[n×n]` holds the
-/// unit lower-triangular `L` and the diagonal holds `D` (the strict upper triangle is left as
-/// it was). A symmetric `a` is positive definite iff every `d_j > 0`; on failure returns the
-/// first `j` that is not, is not a normal number (a subnormal pivot would make its
-/// reciprocal infinite), or is at rounding level: `d_j ≤ 32 n ε a_jj`.
+/// Square-root-free Cholesky factorization `a = L D L'` (Golub & Van Loan, *Matrix
+/// Computations*, Algorithm 4.1.2) of the symmetric `a[n×n]` into `f[n×n]`: on success the
+/// strict lower triangle of `f` holds the unit lower-triangular `L`, the diagonal holds `D` and
+/// the strict upper triangle is `a`'s. Only the lower triangle of `a` is used; it is read
+/// entry by entry rather than copied first (S has just been written entry by entry by
+/// `symmetrize`, and a whole-row copy of it would stall: store forwarding fails). A symmetric
+/// `a` is positive definite iff every `d_j > 0`; on failure returns the first `j` that is not,
+/// is not a normal number (a subnormal pivot would make its reciprocal infinite), or is at
+/// rounding level: `d_j ≤ 32 n ε a_jj`.
 ///
 /// Why that floor: `d_j / a_jj` is one minus the squared multiple correlation of component j
 /// with the ones before it, so the test does not depend on the units of the components (S may
@@ -214,26 +216,29 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 /// the innovation covariance S: with no square roots its latency is one division per pivot,
 /// which bounds a small filter step.
 #[inline(always)]
-pub(crate) fn ldl(a: &mut [f64], n: usize) -> Result<(), usize> {
+pub(crate) fn ldl(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
     let floor = 32.0 * n as f64 * f64::EPSILON;
     for j in 0..n {
         let a_jj = a[j * n + j];
         let mut d = a_jj;
         for l in 0..j {
-            d -= a[j * n + l] * (a[j * n + l] * a[l * n + l]);
+            d -= f[j * n + l] * (f[j * n + l] * f[l * n + l]);
         }
         // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
         if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d.is_finite()) {
             return Err(j);
         }
-        a[j * n + j] = d;
+        f[j * n + j] = d;
         let inv = 1.0 / d;
         for i in j + 1..n {
             let mut s = a[i * n + j];
             for l in 0..j {
-                s -= a[i * n + l] * (a[j * n + l] * a[l * n + l]);
+                s -= f[i * n + l] * (f[j * n + l] * f[l * n + l]);
             }
-            a[i * n + j] = s * inv;
+            f[i * n + j] = s * inv;
+        }
+        for i in 0..j {
+            f[i * n + j] = a[i * n + j];
         }
     }
     Ok(())
@@ -319,8 +324,8 @@ mod tests {
     #[test]
     fn ldl_solves_a_spd_system() {
         let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
-        let mut f = a;
-        ldl(&mut f, 3).unwrap();
+        let mut f = [0.0; 9];
+        ldl(&mut f, &a, 3).unwrap();
         let b = [1.0, 2.0, 3.0];
         let mut x = b;
         let quad = ldl_solve_quad(&f, &mut x, 3);
@@ -340,19 +345,17 @@ mod tests {
         assert!((first[0] - 1.0).abs() < 1e-12 && first[1].abs() < 1e-12 && first[2].abs() < 1e-12);
         // det = 4 (15 − 1) − 2 (6 − 0.4) + 0.4 (2 − 2) = 44.8
         assert!((ldl_log_det(&f, 3) - 44.8f64.ln()).abs() < 1e-12);
-        let mut indefinite = [1.0, 2.0, 2.0, 1.0];
-        assert_eq!(ldl(&mut indefinite, 2), Err(1));
-        let mut subnormal = [1e-310];
-        assert_eq!(ldl(&mut subnormal, 1), Err(0));
+        let mut f2 = [0.0; 4];
+        assert_eq!(ldl(&mut f2, &[1.0, 2.0, 2.0, 1.0], 2), Err(1));
+        assert_eq!(ldl(&mut f2[..1], &[1e-310], 1), Err(0));
         // The second component is the first plus noise of variance 4 ε: a positive pivot at
         // rounding level of its own variance, refused; in other units (scaled by 1e±10) too.
         for scale in [1.0, 1e10, 1e-10] {
-            let mut collinear = [scale * scale, scale, scale, 1.0 + 4.0 * f64::EPSILON];
-            assert_eq!(ldl(&mut collinear, 2), Err(1), "scale {scale}");
+            let collinear = [scale * scale, scale, scale, 1.0 + 4.0 * f64::EPSILON];
+            assert_eq!(ldl(&mut f2, &collinear, 2), Err(1), "scale {scale}");
         }
         // Very different variances but uncorrelated components are fine.
-        let mut units = [1e16, 0.0, 0.0, 1e-16];
-        assert_eq!(ldl(&mut units, 2), Ok(()));
+        assert_eq!(ldl(&mut f2, &[1e16, 0.0, 0.0, 1e-16], 2), Ok(()));
     }
 
     #[test]

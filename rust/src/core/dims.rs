@@ -21,6 +21,11 @@ pub(crate) trait Dims: Copy + Send + Sync {
     /// An n × m (or m × n) matrix.
     type StateObs: Buf;
 
+    /// Whether the buffers are local arrays of compile-time size. A time loop over such a
+    /// workspace keeps it in registers only if nothing of run-time size touches it and its
+    /// address never leaves the loop (see `Run::steps` in `linear/filter`).
+    const FIXED: bool;
+
     /// The state size n.
     fn n(self) -> usize;
     /// The output size m.
@@ -57,6 +62,8 @@ impl Dims for Dyn {
     type ObsSquare = Vec<f64>;
     type StateObs = Vec<f64>;
 
+    const FIXED: bool = false;
+
     #[inline(always)]
     fn n(self) -> usize {
         self.n
@@ -77,6 +84,8 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
     type Obs = [[f64; M]; 1];
     type ObsSquare = [[f64; M]; M];
     type StateObs = [[f64; M]; N];
+
+    const FIXED: bool = true;
 
     #[inline(always)]
     fn n(self) -> usize {

@@ -75,6 +75,7 @@ pub(crate) struct GaussianUpdate<D: Dims> {
 }
 
 impl<D: Dims> GaussianUpdate<D> {
+    #[inline(always)]
     pub fn new(d: D) -> Self {
         GaussianUpdate {
             s_factor: d.obs_square(),
@@ -87,6 +88,20 @@ impl<D: Dims> GaussianUpdate<D> {
             nn_a: d.square(),
             nn_b: d.square(),
         }
+    }
+
+    /// Makes this a copy of `other` without allocating (see `Workspace::copy_from`).
+    #[inline(always)]
+    pub fn copy_from(&mut self, other: &Self) {
+        let GaussianUpdate { s_factor, s_inv_e, gain_t, log_det, loglik_t, gain, r_gain_t, nn_a, nn_b } = other;
+        (self.log_det, self.loglik_t) = (*log_det, *loglik_t);
+        self.s_factor.clone_from(s_factor);
+        self.s_inv_e.clone_from(s_inv_e);
+        self.gain_t.clone_from(gain_t);
+        self.gain.clone_from(gain);
+        self.r_gain_t.clone_from(r_gain_t);
+        self.nn_a.clone_from(nn_a);
+        self.nn_b.clone_from(nn_b);
     }
 
     /// The update of `(x_pred, p_pred)` by the `mo` observed components predicted in `pred`,
@@ -106,8 +121,7 @@ impl<D: Dims> GaussianUpdate<D> {
     ) -> Result<()> {
         let n = d.n();
         let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
-        s_factor.copy_from_slice(&pred.innov_cov[..mo * mo]);
-        if let Err(j) = ldl(s_factor, mo) {
+        if let Err(j) = ldl(s_factor, &pred.innov_cov[..mo * mo], mo) {
             return Err(not_positive_definite(t, j, mo));
         }
         let s_factor = &self.s_factor.get()[..mo * mo];

@@ -21,7 +21,7 @@ use crate::error::Result;
 use crate::linear::model::{LinearGaussian, StepView};
 use crate::linear::validate::check_converge_tol;
 pub(crate) use crate::linear::validate::{check_data, check_series};
-use step::overflowed;
+use step::{all_observed, overflowed};
 
 /// How the filter runs: the covariance update form and whether to freeze the gains once the
 /// covariance has converged.
@@ -198,6 +198,14 @@ impl Run<'_> {
     }
 
     /// Update with `y[t]`, then the time update to `t + 1`, for every t.
+    ///
+    /// With compile-time sizes the compiler keeps the workspace in registers (its buffers are
+    /// small local arrays) only if every access to it has a constant offset and its address
+    /// never leaves this function; otherwise every intermediate goes through the stack, where
+    /// a row loaded right after being stored in pieces stalls (store forwarding fails). So
+    /// the fully observed step, all of compile-time sizes, runs here, and a step with a
+    /// missing value (a run-time number of observed components) runs out of line on a heap
+    /// copy of the workspace. Both run the same code, so the results are the same bits.
     #[inline(always)]
     fn steps<'m, D: Dims>(
         &self,
@@ -205,13 +213,25 @@ impl Run<'_> {
         out: &mut FilterOutputs<'_>,
         at: impl Fn(usize) -> StepView<'m>,
     ) -> Result<f64> {
+        let mut copy: Option<Box<Workspace<D>>> = None;
         let mut total = 0.0;
         for t in 0..self.y.steps() {
             let sys = at(t);
-            let u_t = self.u.map(|u| u.row(t));
+            let (y, u_t) = (self.y.row(t), self.u.map(|u| u.row(t)));
             out.store_prior(t, ws.x_pred(), ws.p_pred());
-            ws.update(&sys, self.y.row(t), u_t, self.form, t)?;
-            ws.predict(&sys, u_t);
+            if all_observed(y) {
+                ws.update_observed(&sys, y, u_t, self.form, t)?;
+                ws.predict_observed(&sys, u_t);
+            } else if D::FIXED {
+                let d = ws.dims();
+                let copy = copy.get_or_insert_with(|| Box::new(Workspace::new(d, 0, self.x0, self.p0)));
+                copy.copy_from(ws);
+                copy.step_out_of_line(&sys, y, u_t, self.form, t)?;
+                ws.copy_from(copy);
+            } else {
+                ws.update(&sys, y, u_t, self.form, t)?;
+                ws.predict(&sys, u_t);
+            }
             total += ws.loglik_t();
             out.store_step(t, ws);
         }

@@ -97,6 +97,7 @@ pub(crate) struct LastUpdate<'a> {
 
 impl<D: Dims> Workspace<D> {
     /// A workspace for sizes `d` and `k` inputs, starting from the prior `(x0, P0)`.
+    #[inline(always)]
     pub fn new(d: D, k: usize, x0: &[f64], p0: &[f64]) -> Self {
         let mut ws = Workspace {
             d,
@@ -136,10 +137,69 @@ impl<D: Dims> Workspace<D> {
     }
 
     /// Sets x̂(t|t−1), P(t|t−1) (P symmetrized).
+    #[inline(always)]
     pub fn set_state(&mut self, x: &[f64], p: &[f64]) {
         self.x_pred.get_mut().copy_from_slice(x);
         self.p_pred.get_mut().copy_from_slice(p);
         symmetrize(self.p_pred.get_mut(), self.d.n());
+    }
+
+    /// Makes this workspace a copy of `other` without allocating (vectors keep their
+    /// capacity). The destructuring names every field, so a new field cannot be forgotten.
+    #[inline(always)]
+    pub fn copy_from(&mut self, other: &Self) {
+        let Workspace {
+            d,
+            k,
+            x_pred,
+            p_pred,
+            x_filt,
+            p_filt,
+            innov,
+            s_full,
+            pht,
+            gain,
+            gain_pred,
+            update,
+            converge_tol,
+            frozen,
+            want_gain_pred,
+            want_gain,
+            obs,
+            m_obs,
+            partial: Partial { innov: p_innov, pht: p_pht, s: p_s, h: p_h, r: p_r, n: p_n },
+            fp,
+            gain_o,
+            f_gain,
+            s_inv_nt,
+            p_prev,
+        } = other;
+        (self.d, self.k, self.converge_tol, self.frozen) = (*d, *k, *converge_tol, *frozen);
+        (self.want_gain_pred, self.want_gain, self.m_obs) = (*want_gain_pred, *want_gain, *m_obs);
+        self.update.copy_from(update);
+        // The slices (not `Vec::clone_from`, which takes the address of the field).
+        self.obs.copy_from_slice(obs);
+        // Field by field, no loop over references: nothing may take the workspace's address.
+        self.x_pred.clone_from(x_pred);
+        self.p_pred.clone_from(p_pred);
+        self.x_filt.clone_from(x_filt);
+        self.p_filt.clone_from(p_filt);
+        self.innov.clone_from(innov);
+        self.s_full.clone_from(s_full);
+        self.pht.clone_from(pht);
+        self.gain.clone_from(gain);
+        self.gain_pred.clone_from(gain_pred);
+        self.partial.innov.clone_from(p_innov);
+        self.partial.pht.clone_from(p_pht);
+        self.partial.s.clone_from(p_s);
+        self.partial.h.clone_from(p_h);
+        self.partial.r.clone_from(p_r);
+        self.partial.n.clone_from(p_n);
+        self.fp.clone_from(fp);
+        self.gain_o.clone_from(gain_o);
+        self.f_gain.clone_from(f_gain);
+        self.s_inv_nt.clone_from(s_inv_nt);
+        self.p_prev.clone_from(p_prev);
     }
 
     /// Which outputs to compute: the filter gain, the predictor gain (without N it is only an
@@ -148,6 +208,12 @@ impl<D: Dims> Workspace<D> {
         self.want_gain = want_gain;
         self.want_gain_pred = want_gain_pred;
         self.converge_tol = converge_tol;
+    }
+
+    /// The sizes.
+    #[inline(always)]
+    pub fn dims(&self) -> D {
+        self.d
     }
 
     /// x̂(t|t−1).
@@ -236,15 +302,34 @@ impl<D: Dims> Workspace<D> {
         form: UpdateForm,
         t: usize,
     ) -> Result<()> {
-        self.update_moments(sys, y, u, form, t)?;
-        if self.update.loglik_t().is_nan() {
-            return Err(overflowed(t));
+        if all_observed(y) {
+            return self.update_observed(sys, y, u, form, t);
         }
+        self.update_missing(sys, y, u, form, t)
+    }
+
+    /// [`update`](Self::update) then [`predict`](Self::predict), not inlined (the rare steps
+    /// of a time loop that keeps its own workspace in registers).
+    #[inline(never)]
+    pub fn step_out_of_line(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        self.update(sys, y, u, form, t)?;
+        self.predict(sys, u);
         Ok(())
     }
 
+    /// [`update`](Self::update) for a `y` with every component observed. Everything it does
+    /// has the compile-time sizes of `D`: a time loop that calls only this and
+    /// [`predict_observed`](Self::predict_observed) on a fixed-size workspace lets the compiler
+    /// keep the workspace in registers (see `Run::steps`).
     #[inline(always)]
-    fn update_moments(
+    pub fn update_observed(
         &mut self,
         sys: &StepView<'_>,
         y: &[f64],
@@ -253,58 +338,59 @@ impl<D: Dims> Workspace<D> {
         t: usize,
     ) -> Result<()> {
         let (d, n, m) = (self.d, self.d.n(), self.d.m());
-        // Innovation of every component: e = y − H x − D u (NaN where y is missing).
-        let innov = self.innov.get_mut();
-        mul_vec(innov, sys.h, self.x_pred.get(), m, n);
-        if let (Some(dm), Some(u)) = (sys.d, u) {
-            mul_vec_add(innov, dm, u, m, self.k);
-        }
-        for (e, yi) in innov.iter_mut().zip(y) {
-            *e = yi - *e;
-        }
-        let all_observed = !y.iter().any(|v| v.is_nan());
+        self.innovation(sys, y, u);
         if self.frozen {
-            if all_observed {
-                self.update.apply_mean(d, self.innov.get(), self.pht.get(), self.x_pred.get(), self.x_filt.get_mut());
-                return Ok(());
-            }
-            self.frozen = false;
+            self.update.apply_mean(d, self.innov.get(), self.pht.get(), self.x_pred.get(), self.x_filt.get_mut());
+            return self.check_finite(t);
         }
-        // C = P H' and S = H P H' + R for all components (S is the forecast error covariance
-        // of y(t), reported for missing components too).
-        let pht = self.pht.get_mut();
-        mul_bt(pht, self.p_pred.get(), sys.h, n, n, m);
-        let s = self.s_full.get_mut();
-        mul(s, sys.h, pht, m, n, m);
-        for (s, r) in s.iter_mut().zip(sys.r) {
-            *s += r;
+        self.measurement_covariances(sys);
+        self.m_obs = m;
+        let pred = MeasurementPrediction {
+            innov: self.innov.get(),
+            cross_cov: self.pht.get(),
+            innov_cov: self.s_full.get(),
+            joseph: (form == UpdateForm::Joseph).then_some((sys.h, sys.r)),
+        };
+        self.update.apply(
+            d,
+            m,
+            &pred,
+            self.x_pred.get(),
+            self.p_pred.get(),
+            self.x_filt.get_mut(),
+            self.p_filt.get_mut(),
+            t,
+        )?;
+        if self.want_gain {
+            transpose(self.gain.get_mut(), self.update.gain_t(m, n), m, n);
         }
-        symmetrize(s, m);
+        self.check_finite(t)
+    }
 
-        if all_observed {
-            self.m_obs = m;
-            let pred = MeasurementPrediction {
-                innov: self.innov.get(),
-                cross_cov: self.pht.get(),
-                innov_cov: self.s_full.get(),
-                joseph: (form == UpdateForm::Joseph).then_some((sys.h, sys.r)),
-            };
-            // The fully observed case gets the compile-time m.
-            self.update.apply(
-                d,
-                m,
-                &pred,
-                self.x_pred.get(),
-                self.p_pred.get(),
-                self.x_filt.get_mut(),
-                self.p_filt.get_mut(),
-                t,
-            )?;
-            if self.want_gain {
-                transpose(self.gain.get_mut(), self.update.gain_t(m, n), m, n);
-            }
-            return Ok(());
+    /// Fails when the state has left float64's range: a NaN reaches the log-likelihood term at
+    /// the first step whose innovation or state overflowed (an unstable F over a long series,
+    /// data near 1e308).
+    #[inline(always)]
+    fn check_finite(&self, t: usize) -> Result<()> {
+        if self.update.loglik_t().is_nan() {
+            return Err(overflowed(t));
         }
+        Ok(())
+    }
+
+    /// [`update`](Self::update) for a `y` with some component missing: the observed ones
+    /// update (none: the update is skipped).
+    fn update_missing(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        self.innovation(sys, y, u);
+        self.frozen = false;
+        self.measurement_covariances(sys);
         self.m_obs = 0;
         for (i, yi) in y.iter().enumerate() {
             if !yi.is_nan() {
@@ -321,7 +407,38 @@ impl<D: Dims> Workspace<D> {
             self.update.set_loglik_t(0.0);
             return Ok(());
         }
-        self.update_partial(sys, form, t)
+        self.update_partial(sys, form, t)?;
+        self.check_finite(t)
+    }
+
+    /// The innovation of every component: e = y − H x − D u (NaN where y is missing).
+    #[inline(always)]
+    fn innovation(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>) {
+        let (n, m) = (self.d.n(), self.d.m());
+        let innov = self.innov.get_mut();
+        mul_vec(innov, sys.h, self.x_pred.get(), m, n);
+        if let (Some(dm), Some(u)) = (sys.d, u) {
+            mul_vec_add(innov, dm, u, m, self.k);
+        }
+        // `[..m]`: a loop over the compile-time m (y's length is m, checked by the caller).
+        for (e, yi) in innov.iter_mut().zip(&y[..m]) {
+            *e = yi - *e;
+        }
+    }
+
+    /// C = P H' and S = H P H' + R for all components (S is the forecast error covariance of
+    /// y(t), reported for missing components too).
+    #[inline(always)]
+    fn measurement_covariances(&mut self, sys: &StepView<'_>) {
+        let (n, m) = (self.d.n(), self.d.m());
+        let pht = self.pht.get_mut();
+        mul_bt(pht, self.p_pred.get(), sys.h, n, n, m);
+        let s = self.s_full.get_mut();
+        mul(s, sys.h, pht, m, n, m);
+        for (s, r) in s.iter_mut().zip(&sys.r[..m * m]) {
+            *s += r;
+        }
+        symmetrize(s, m);
     }
 
     /// The update with the observed components only (some, not all, are missing).
@@ -389,7 +506,20 @@ impl<D: Dims> Workspace<D> {
     /// `K_pred = F K + N S⁻¹` of the update just made.
     #[inline(always)]
     pub fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
-        let (n, m, mo) = (self.d.n(), self.d.m(), self.m_obs);
+        self.time_update(sys, u, self.m_obs);
+    }
+
+    /// [`predict`](Self::predict) after [`update_observed`](Self::update_observed): all m
+    /// components observed, known at compile time for fixed sizes.
+    #[inline(always)]
+    pub fn predict_observed(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
+        self.time_update(sys, u, self.d.m());
+    }
+
+    /// The time update after an update with `mo` observed components (`mo = m_obs`).
+    #[inline(always)]
+    fn time_update(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, mo: usize) {
+        let (n, m) = (self.d.n(), self.d.m());
         let x_pred = self.x_pred.get_mut();
         mul_vec(x_pred, sys.f, self.x_filt.get(), n, n);
         if let (Some(b), Some(u)) = (sys.b, u) {
@@ -408,7 +538,8 @@ impl<D: Dims> Workspace<D> {
         mul(fp, sys.f, self.p_filt.get(), n, n, n);
         let p_pred = self.p_pred.get_mut();
         mul_bt_sym(p_pred, fp, sys.f, n, n);
-        for (p, q) in p_pred.iter_mut().zip(sys.q) {
+        // `[..n * n]`: a loop over the compile-time n (Q is n × n).
+        for (p, q) in p_pred.iter_mut().zip(&sys.q[..n * n]) {
             *p += q;
         }
         if self.want_gain_pred || sys.n.is_some() {
@@ -489,4 +620,10 @@ pub(crate) fn overflowed(t: usize) -> Error {
         t,
         "the state estimate overflowed (it is no longer finite): the data or F drive it beyond float64's range",
     )
+}
+
+/// Whether every component of `y` is observed (no NaN).
+#[inline(always)]
+pub(crate) fn all_observed(y: &[f64]) -> bool {
+    !y.iter().any(|v| v.is_nan())
 }
