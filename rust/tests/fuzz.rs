@@ -58,7 +58,7 @@ proptest! {
     #![proptest_config(ProptestConfig {
         cases: 256,
         failure_persistence: None,
-        rng_seed: RngSeed::Fixed(0x6b66_6173_74),
+        rng_seed: RngSeed::Fixed(0x006b_6661_7374),
         ..ProptestConfig::default()
     })]
 
