@@ -35,6 +35,19 @@ def as_float64(name: str, value: object) -> np.ndarray:
     return np.asarray(arr, dtype=np.float64, order="C")
 
 
+def finite_vector(name: str, value: object, what: str) -> np.ndarray:
+    """``value`` as a non-empty, finite 1-D float64 array (a scalar is a vector of one);
+    ``what`` says in the error what the entries are."""
+    arr = as_float64(name, value)
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1 or arr.size == 0:
+        raise KfastError(f"{name}: expected a non-empty 1-D array {what}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise KfastError(f"{name}: must be finite, got {arr}")
+    return arr
+
+
 def frozen_copy(name: str, value: object, scalar_shape: tuple = ()) -> np.ndarray:
     """A read-only float64 copy of ``value`` (for model attributes); a scalar gets
     ``scalar_shape`` (e.g. (1, 1) for a 1 x 1 matrix)."""

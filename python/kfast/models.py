@@ -38,7 +38,7 @@ import numpy as np
 
 from kfast import _kfast
 from kfast._args import index
-from kfast._arrays import as_float64
+from kfast._arrays import as_float64, finite_vector
 from kfast._numbers import integer_lags, powers_applied
 from kfast.linear.model import LinearGaussian
 from kfast.sampling import discretize
@@ -598,14 +598,7 @@ def singer(dt, alpha, sigma_m2, r=1.0, dim=1, observe: Observe = 0) -> LinearGau
 
 
 def _ar_coeffs(coeffs) -> np.ndarray:
-    a = as_float64("coeffs", coeffs)
-    if a.ndim == 0:
-        a = a.reshape(1)
-    if a.ndim != 1 or a.size == 0:
-        raise KfastError(f"coeffs: expected a non-empty 1-D array [a1, ..., ap], got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise KfastError(f"coeffs: must be finite, got {a}")
-    return a
+    return finite_vector("coeffs", coeffs, "[a1, ..., ap]")
 
 
 def ar(coeffs, noise_var, r=0.0) -> LinearGaussian:

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast._args import flag, tolerance
-from kfast._arrays import as_float64
+from kfast._arrays import as_float64, finite_vector
 from kfast._kfast import KfastError
 from kfast.linear.model import LinearGaussian
 from kfast._typing import EMParameter
@@ -165,14 +165,7 @@ def fit(
 
 def _fit_theta0(theta0: ArrayLike) -> np.ndarray:
     """fit's starting point: a non-empty finite 1-D array (a scalar is one parameter)."""
-    theta = as_float64("theta0", theta0)
-    if theta.ndim == 0:
-        theta = theta.reshape(1)
-    if theta.ndim != 1 or theta.size == 0:
-        raise KfastError(f"theta0: expected a non-empty 1-D array of parameters, got shape {theta.shape}")
-    if not np.all(np.isfinite(theta)):
-        raise KfastError(f"theta0: must be finite, got {theta}")
-    return theta
+    return finite_vector("theta0", theta0, "of parameters")
 
 
 # Above this, y^2 is not a double: the log-likelihood of any model of moderate scale overflows.
