@@ -32,6 +32,8 @@ def tolerance(name: str, value: object) -> Optional[float]:
         raise KfastError(f"{name}: expected a number, got {value!r}")
     try:
         tol = float(value)  # type: ignore[arg-type]
+    except OverflowError:  # an integer beyond float's range, e.g. 10**400
+        raise KfastError(f"{name}: is too large ({value!r})") from None
     except (TypeError, ValueError):
         raise KfastError(f"{name}: expected a number, got {value!r}") from None
     if not tol >= 0:

@@ -285,6 +285,8 @@ def test_filter_batch_return_covs_is_a_bool(cv, value):
         (lambda m: m.filter(np.zeros((5, 2)), z, I, converge_tol="1e-9"), "converge_tol"),
         (lambda m: m.filter(np.zeros((5, 2)), z, I, converge_tol=np.nan), "converge_tol"),
         (lambda m: m.filter(np.zeros((5, 2)), z, I, converge_tol=1 + 1j), "converge_tol"),
+        (lambda m: m.filter(np.zeros((5, 2)), z, I, converge_tol=10**400), "converge_tol"),
+        (lambda m: m.em(np.zeros((5, 2)), z, I, tol=10**400), "tol"),
         (lambda m: m.filter(np.zeros((5, 2)), z, I, outputs=5), "outputs"),
         (lambda m: m.smooth_fixed_lag(np.zeros((5, 2)), z, I, lag=1.5), "lag"),
         (lambda m: m.smooth_fixed_point(np.zeros((5, 2)), z, I, t_point=2**70), "t_point"),
