@@ -334,5 +334,9 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
         raise _kfast.KfastError(f"H: expected {len(A)} columns like A, got shape {H.shape}")
     Qc = _covariance("Qc", Qc, len(A))
     Rc = _covariance("Rc", Rc, len(H), definite=True)
-    sol = care(A.T, H.T, Qc, Rc)
+    try:
+        sol = care(A.T, H.T, Qc, Rc)
+    except _kfast.KfastError as exc:  # the dual CARE's names: a = A', b = H', q = Qc, r = Rc
+        names = {"a": "A", "b": "H", "q": "Qc", "r": "Rc"}
+        raise type(exc)(re.sub(r"^(a|b|q|r)\b", lambda m: names[m.group(1)], str(exc))) from None
     return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])

@@ -311,6 +311,9 @@ fn continuous_model(
     let (am, qm) = (checked_mat("A", a, n, n)?, checked_mat("Qc", qc, n, n)?);
     crate::core::validate::check_symmetric(qc, n).map_err(|p| Error::arg("Qc", p))?;
     crate::core::validate::check_psd(qc, n).map_err(|p| Error::arg("Qc", p))?;
+    if b.is_some() && k == 0 {
+        return Err(Error::arg("B", "has no columns (k = 0 inputs)"));
+    }
     Ok((am, qm, b.map(|b| checked_mat("B", b, n, k)).transpose()?))
 }
 

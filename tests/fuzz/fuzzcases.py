@@ -385,7 +385,8 @@ _ENTRY_LIST = [
         "ric",
         "kfast.discretize({kw})",
         (Arg("A", "AH", shape=(2, 2)), Arg("Qc", "Q2", shape=(2, 2), cov=True), Arg("dt", "0.1", kind="float"),
-         Arg("B", "BC", shape=(2, 1), optional=True)),
+         # B may have any number k >= 1 of columns (inputs)
+         Arg("B", "BC", shape=(2, 1), optional=True, alt_shapes=((2, 2), (2, 3), (2, 4)))),
     ),
     Entry(
         "from_continuous",

@@ -196,7 +196,7 @@ impl LinearGaussian {
             return Err(Error::arg("H", "has no rows: the output needs at least one component (m ≥ 1)"));
         }
         mats.q.expect_shape("Q", n, n, "(n × n, n = F's size)")?;
-        mats.r.expect_shape("R", m, m, "(m × m, m = H's rows)")?;
+        mats.r.expect_shape("R", m, m, &format!("(m × m: H has {m} rows)"))?;
         let k = match (&mats.b, &mats.d) {
             (Some(b), _) => b.cols,
             (None, Some(d)) => d.cols,
@@ -209,7 +209,7 @@ impl LinearGaussian {
             b.expect_shape("B", n, k, "(n × k)")?;
         }
         if let Some(d) = &mats.d {
-            d.expect_shape("D", m, k, "(m × k, k = B's columns)")?;
+            d.expect_shape("D", m, k, &format!("(m × k: B has {k} columns)"))?;
         }
         if let Some(nn) = &mats.n {
             nn.expect_shape("N", n, m, "(n × m)")?;

@@ -394,7 +394,7 @@ fn batch_part<'a>(
     let per_series: Vec<usize> = std::iter::once(series).chain(shape.iter().copied()).collect();
     if arr.shape() != shape && arr.shape() != per_series.as_slice() {
         return Err(KfastError::new_err(format!(
-            "{arg}: expected shape {} (shared) or {} (one per series, B = {series}), got {}",
+            "{arg}: expected shape {} (shared) or {} (one per series: Y has {series} series), got {}",
             shape_str(shape),
             shape_str(&per_series),
             shape_str(arr.shape())

@@ -118,6 +118,13 @@ fn solve_with_schur(schur: &RealSchur, qm: &Mat<f64>, q: &[f64], kind: Kind) -> 
     }
     let x = z * &y * z.transpose();
     let mut out = from_mat(&x);
+    if out.iter().any(|v| !v.is_finite()) {
+        // Entries near 1e155 and beyond: the products of the solve overflow.
+        return Err(Error::arg(
+            "a",
+            "the solution is not finite: a or q is too large for double precision (rescale them)",
+        ));
+    }
     if crate::core::validate::check_symmetric(q, n).is_ok() {
         crate::core::dense::symmetrize(&mut out, n);
     }
