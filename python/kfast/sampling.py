@@ -81,12 +81,13 @@ def _square(name: str, value: ArrayLike) -> np.ndarray:
     return a
 
 
-def _covariance(name: str, value: ArrayLike, n: int, definite: bool = False) -> np.ndarray:
+def _covariance(name: str, value: ArrayLike, n: int, definite: bool = False, size_from: str = "A") -> np.ndarray:
     """An (n, n) symmetric positive semidefinite (``definite``: positive definite) matrix, with
-    the relative tolerance 1e-10 of the core's checks; an error naming ``name`` otherwise."""
+    the relative tolerance 1e-10 of the core's checks; an error naming ``name`` otherwise
+    (``size_from``: the argument n comes from, named in the shape error)."""
     c = _square(name, value)
     if c.shape != (n, n):
-        raise _kfast.KfastError(f"{name}: expected shape ({n}, {n}), got {c.shape}")
+        raise _kfast.KfastError(f"{name}: expected shape ({n}, {n}) as {size_from} has size {n}, got {c.shape}")
     scale = np.abs(c).max() if n else 0.0
     if np.abs(c - c.T).max(initial=0.0) > 1e-10 * scale:
         raise _kfast.KfastError(f"{name}: not symmetric")
@@ -332,8 +333,10 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     H = _matrix("H", _unmasked("H", H))
     if H.shape[1] != len(A):
         raise _kfast.KfastError(f"H: expected {len(A)} columns like A, got shape {H.shape}")
+    if H.shape[0] == 0:
+        raise _kfast.KfastError("H: has no rows: the output needs at least one component")
     Qc = _covariance("Qc", Qc, len(A))
-    Rc = _covariance("Rc", Rc, len(H), definite=True)
+    Rc = _covariance("Rc", Rc, len(H), definite=True, size_from="H")
     try:
         sol = care(A.T, H.T, Qc, Rc)
     except _kfast.KfastError as exc:  # the dual CARE's names: a = A', b = H', q = Qc, r = Rc
