@@ -579,7 +579,7 @@ def sanity(result, result_name: str = "result", inf_ok: bool = False) -> Optiona
                 other = name[: -len(low)] + high
                 other = other.replace(".filter.filter.", ".filter.")
                 if other in found and found[other].shape == found[name].shape:
-                    bad = _not_psd(found[other] - found[name], scale=np.abs(found[other]).max())
+                    bad = _not_psd(found[other] - found[name], scale=max(float(np.abs(found[other]).max()), problem_scale))
                     if bad:
                         return "garbage", f"{other} - {name} (must be PSD) {bad}"
     return None
