@@ -65,7 +65,8 @@ def _unmask(name: str, value: np.ma.MaskedArray) -> np.ndarray:
         return np.ma.getdata(value)
     if name not in _OBSERVATIONS:
         raise KfastError(
-            f"{name}: has {int(mask.sum())} masked entries; only observations (y) may be masked (missing values)"
+            f"{name}: has masked entries ({int(mask.sum())}); only observations (y) may be masked (missing "
+            "values): a matrix, prior, input or interval cannot be missing"
         )
     data = np.ma.getdata(value)
     if data.dtype.kind not in "fiu":

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,22 +58,11 @@ def expm(a: ArrayLike) -> np.ndarray:
     >>> print(round(float(kfast.expm(1.0)[0, 0]), 12))
     2.718281828459
     """
-    return _kfast.expm(_matrix("a", _unmasked("a", a)))
-
-
-def _unmasked(name: str, value: Any) -> Any:
-    """``value`` without its mask; an error naming ``name`` if any entry is masked (a model
-    matrix or an interval cannot be missing, and np.asarray would silently use the hidden
-    data)."""
-    if isinstance(value, np.ma.MaskedArray):
-        if np.ma.getmaskarray(value).any():
-            raise _kfast.KfastError(f"{name}: has masked entries; a model matrix or interval cannot be missing")
-        return value.data
-    return value
+    return _kfast.expm(_matrix("a", a))
 
 
 def _square(name: str, value: ArrayLike) -> np.ndarray:
-    a = _matrix(name, _unmasked(name, value))
+    a = _matrix(name, value)
     if a.shape[0] != a.shape[1]:
         raise _kfast.KfastError(f"{name}: expected a square matrix, got shape {a.shape}")
     if not np.isfinite(a).all():
@@ -170,9 +159,9 @@ def discretize(A: ArrayLike, Qc: ArrayLike, dt: ArrayLike, B: Optional[ArrayLike
     >>> Bd is None
     True
     """
-    A_arr, Qc_arr = _matrix("A", _unmasked("A", A)), _matrix("Qc", _unmasked("Qc", Qc))
-    B_arr = None if B is None else _matrix("B", _unmasked("B", B))
-    dt_arr = as_float64("dt", _unmasked("dt", dt))
+    A_arr, Qc_arr = _matrix("A", A), _matrix("Qc", Qc)
+    B_arr = None if B is None else _matrix("B", B)
+    dt_arr = as_float64("dt", dt)
     if dt_arr.ndim > 1 or dt_arr.size == 0:
         raise _kfast.KfastError(f"dt: expected a scalar or a non-empty 1-D array, got shape {dt_arr.shape}")
     try:
@@ -215,7 +204,7 @@ def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None)
     if (dt is None) == (times is None):
         raise _kfast.KfastError("dt, times: give exactly one of them")
     if times is not None:
-        t = as_float64("times", _unmasked("times", times))
+        t = as_float64("times", times)
         if t.ndim != 1 or len(t) < 2:
             raise _kfast.KfastError(f"times: expected a 1-D array of at least 2 sample times, got shape {t.shape}")
         d = np.diff(t)
@@ -224,7 +213,7 @@ def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None)
             raise _kfast.KfastError(f"times at step {bad[0] + 1}: not strictly increasing ({t[bad[0]]} then {t[bad[0] + 1]})")
         d = np.append(d, d[-1])
     else:
-        d = np.atleast_1d(as_float64("dt", _unmasked("dt", dt)))
+        d = np.atleast_1d(as_float64("dt", dt))
         if d.ndim != 1 or len(d) == 0:
             raise _kfast.KfastError(f"dt: expected a scalar or a non-empty 1-D array, got shape {d.shape}")
     bad = np.flatnonzero(~(d > 0) | ~np.isfinite(d))
@@ -330,7 +319,7 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     [[0.414214]] [[0.414214]] [-1.414214]
     """
     A = _square("A", A)
-    H = _matrix("H", _unmasked("H", H))
+    H = _matrix("H", H)
     if H.shape[1] != len(A):
         raise _kfast.KfastError(f"H: expected {len(A)} columns like A, got shape {H.shape}")
     if H.shape[0] == 0:
