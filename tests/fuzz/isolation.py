@@ -154,3 +154,26 @@ def _serve() -> None:
 
 if __name__ == "__main__":
     _serve()
+
+
+def run_strategy(strategy, worker, fuzz_settings) -> tuple[list, int]:
+    """Runs every distinct case Hypothesis draws from ``strategy`` in ``worker``; returns the
+    formatted failures and the number of cases tried (``KFAST_FUZZ_SEED`` picks other cases)."""
+    from hypothesis import given, seed, settings
+
+    failures, seen = [], set()
+
+    @settings(fuzz_settings)
+    @given(strategy)
+    def run(case):
+        if case.key() in seen:
+            return
+        seen.add(case.key())
+        outcome = worker.run(case)
+        if outcome["outcome"] == "failure":
+            failures.append(format_failure(case, outcome))
+
+    if os.environ.get("KFAST_FUZZ_SEED"):
+        run = seed(int(os.environ["KFAST_FUZZ_SEED"]))(run)
+    run()
+    return failures, len(seen)

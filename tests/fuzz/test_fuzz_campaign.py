@@ -15,11 +15,10 @@ from __future__ import annotations
 import os
 
 import pytest
-from hypothesis import given, seed, settings
 
 from fuzzcases import ENTRIES
 from fuzzstrategies import FAMILIES, all_form_cases, families_of, scalar_case_for, scalar_variants
-from isolation import format_failure
+from isolation import format_failure, run_strategy
 
 HYPOTHESIS_FAMILIES = [(e.name, f) for e in ENTRIES.values() for f in families_of(e) if f not in ("scalar", "form")]
 FORM_ENTRIES = [e.name for e in ENTRIES.values() if "form" in families_of(e)]
@@ -32,23 +31,9 @@ def _report(failures: list, tried: int) -> str:
 
 @pytest.mark.parametrize("entry,family", HYPOTHESIS_FAMILIES, ids=[f"{e}-{f}" for e, f in HYPOTHESIS_FAMILIES])
 def test_campaign(entry, family, worker, fuzz_settings):
-    failures, seen = [], set()
-
-    @settings(fuzz_settings)
-    @given(FAMILIES[family](ENTRIES[entry]))
-    def run(case):
-        if case.key() in seen:
-            return
-        seen.add(case.key())
-        outcome = worker.run(case)
-        if outcome["outcome"] == "failure":
-            failures.append(format_failure(case, outcome))
-
-    if os.environ.get("KFAST_FUZZ_SEED"):
-        run = seed(int(os.environ["KFAST_FUZZ_SEED"]))(run)
-    run()
-    assert seen, "no case was tried"
-    assert not failures, _report(failures, len(seen))
+    failures, tried = run_strategy(FAMILIES[family](ENTRIES[entry]), worker, fuzz_settings)
+    assert tried, "no case was tried"
+    assert not failures, _report(failures, tried)
 
 
 @pytest.mark.parametrize("entry", FORM_ENTRIES)

@@ -7,11 +7,11 @@ Q diag(l) Q', diagonal ones, nilpotent ones: I + N + N^2/2 + N^3/6).
 
 from __future__ import annotations
 
-from hypothesis import given, settings
+from hypothesis import settings
 from hypothesis import strategies as st
 
 from fuzzcases import ENTRIES, Case
-from isolation import format_failure
+from isolation import run_strategy
 
 
 def _expr_case(fixture_entry: str, e: str, variant: str, reference=None, rtol=1e-12, names=("S", "R", "Q")) -> Case:
@@ -68,20 +68,8 @@ def expm_case(draw) -> Case:
 
 
 def _run_all(strategy, worker, fuzz_settings):
-    failures, seen = [], set()
-
-    @settings(fuzz_settings)
-    @given(strategy)
-    def run(case):
-        if case.key() in seen:
-            return
-        seen.add(case.key())
-        outcome = worker.run(case)
-        if outcome["outcome"] == "failure":
-            failures.append(format_failure(case, outcome))
-
-    run()
-    assert not failures, f"{len(failures)} of {len(seen)} cases failed:\n" + "\n".join(failures)
+    failures, tried = run_strategy(strategy, worker, fuzz_settings)
+    assert not failures, f"{len(failures)} of {tried} cases failed:\n" + "\n".join(failures)
 
 
 def test_degenerate_noise(worker, fuzz_settings):
