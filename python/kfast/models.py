@@ -133,16 +133,14 @@ def _evaluate(names: str, what: str, compute: Callable[[], tuple]) -> tuple:
     return values
 
 
-def _discretize_checked(A: np.ndarray, Qc: np.ndarray, h, names_F: str, names_Q: str):
-    """``discretize(A, Qc, h)`` (F, Qd), refused when the exact discretization overflows,
-    naming the parameters of F (``names_F``) or of Qd (``names_Q``)."""
+def _discretize_checked(A: np.ndarray, Qc: np.ndarray, h, names: str):
+    """``discretize(A, Qc, h)`` (F, Qd); when the interval is too long for the rates (the
+    sampled model overflows or cannot be resolved), the error names the model's parameters
+    ``names`` instead of A, Qc and dt, which the user did not pass."""
     try:
         F, Qd, _ = discretize(A, Qc, h)
-    except KfastError as exc:  # the interval is too long for the rates: name the parameters
-        raise KfastError(f"{names_F}: {str(exc).split(': ', 1)[-1]}") from None
-    scale = f"(|A| dt = {np.abs(A).max() * np.max(h):.3g})"
-    _require_finite(names_F, f"the exact discretization e^(A dt) {scale}", F)
-    _require_finite(names_Q, f"the exact discretization of the noise intensity {scale}", Qd)
+    except KfastError as exc:
+        raise KfastError(f"{names}: {str(exc).split(': ', 1)[-1]}") from None
     return F, Qd
 
 
@@ -216,8 +214,7 @@ class Continuous(NamedTuple):
         with R = r I (or the matrix r). ``dt`` may be an array of intervals (per-step model)."""
         if np.ndim(dt) == 0:
             dt = _positive("dt", dt)
-        F, Qd, _ = discretize(self.A, self.Qc, dt)
-        _require_finite("dt", "the exact discretization", F, Qd)
+        F, Qd, _ = discretize(self.A, self.Qc, dt)  # refuses, naming dt, what would overflow
         return LinearGaussian(F, self.H, Qd, _R(r, self.H.shape[0]))
 
 
@@ -516,7 +513,7 @@ def gauss_markov_2(omega_n, zeta, q, dt, r=1.0, observe: Observe = 0) -> LinearG
     """
     h = _positive("dt", dt)
     cm = _cont_gauss_markov_2(omega_n, zeta, q, observe)
-    F, Qd = _discretize_checked(cm.A, cm.Qc, h, "dt, omega_n, zeta", "q, dt, omega_n, zeta")
+    F, Qd = _discretize_checked(cm.A, cm.Qc, h, "dt, omega_n, zeta")
     return LinearGaussian(F, cm.H, Qd, _R(r, cm.H.shape[0]))
 
 
@@ -567,7 +564,7 @@ def damped_resonator(omega, tau, q, dt, r=1.0, observe: Observe = 0) -> LinearGa
     except (OverflowError, ZeroDivisionError):
         closed_form = False
     if not closed_form:  # e.g. omega -> 0 or tau -> inf: the exact discretization by Van Loan
-        F, Qd = _discretize_checked(A, np.diag([0.0, qq]), h, "omega, tau, dt", "q, omega, tau, dt")
+        F, Qd = _discretize_checked(A, np.diag([0.0, qq]), h, "omega, tau, dt")
         Qd = (Qd + Qd.T) / 2
     H = _H(obs, 2, 1)
     return LinearGaussian(F, H, Qd, _R(r, H.shape[0]))
@@ -591,7 +588,7 @@ def singer(dt, alpha, sigma_m2, r=1.0, dim=1, observe: Observe = 0) -> LinearGau
     dim = _dim(dim, 3)
     A, Qc = _singer_axis(alpha, sigma_m2)
     obs = _observe(observe, 3)
-    F1, Q1 = _discretize_checked(A, Qc, h, "dt, alpha", "sigma_m2, dt, alpha")
+    F1, Q1 = _discretize_checked(A, Qc, h, "dt, alpha")
     Q1 = (Q1 + Q1.T) / 2
     H = _H(obs, 3, dim)
     return LinearGaussian(_kron_axes(F1, dim), H, _kron_axes(Q1, dim), _R(r, H.shape[0]))

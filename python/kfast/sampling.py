@@ -8,7 +8,6 @@ small h, never Qc itself). Inputs are held constant over each interval (zero-ord
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
@@ -222,6 +221,16 @@ def intervals(dt: Optional[ArrayLike] = None, times: Optional[ArrayLike] = None)
     return d
 
 
+def _renamed(exc: Exception, names: dict) -> Exception:
+    """``exc`` (of the same type) with the solver's argument name at its head replaced by the
+    name the caller passed (a solver called as a building block names its own arguments)."""
+    head, sep, rest = str(exc).partition(":")
+    first, _, step = head.partition(" at step ")
+    if not sep or first not in names:
+        return exc
+    return type(exc)(names[first] + (f" at step {step}" if step else "") + sep + rest)
+
+
 def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
     """The stationary covariance of dx = A x dt + dbeta with intensity Qc.
 
@@ -261,8 +270,8 @@ def stationary_cov_continuous(A: ArrayLike, Qc: ArrayLike) -> np.ndarray:
         )
     try:
         return solve_continuous_lyapunov(A, -Qc)
-    except _kfast.KfastError as exc:  # the solver's own names are a (A) and q (-Qc)
-        raise _kfast.KfastError(re.sub(r"^a\b", "A", str(exc))) from None
+    except _kfast.KfastError as exc:
+        raise _renamed(exc, {"a": "A", "q": "Qc"}) from None
 
 
 @dataclass(frozen=True, repr=False)
@@ -328,7 +337,6 @@ def kalman_bucy(A: ArrayLike, Qc: ArrayLike, H: ArrayLike, Rc: ArrayLike) -> Kal
     Rc = _covariance("Rc", Rc, len(H), definite=True, size_from="H")
     try:
         sol = care(A.T, H.T, Qc, Rc)
-    except _kfast.KfastError as exc:  # the dual CARE's names: a = A', b = H', q = Qc, r = Rc
-        names = {"a": "A", "b": "H", "q": "Qc", "r": "Rc"}
-        raise type(exc)(re.sub(r"^(a|b|q|r)\b", lambda m: names[m.group(1)], str(exc))) from None
+    except _kfast.KfastError as exc:  # the dual CARE: a = A', b = H', q = Qc, r = Rc
+        raise _renamed(exc, {"a": "A", "b": "H", "q": "Qc", "r": "Rc"}) from None
     return KalmanBucy(P=sol["x"], K=sol["gain"].T, closed_loop_eigenvalues=sol["closed_loop_eigenvalues"])

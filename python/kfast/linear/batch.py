@@ -111,14 +111,8 @@ def filter_batch(
     if n == 1:  # scalars for a scalar state, as in LinearGaussian.filter
         x0 = x0.reshape(1) if x0.ndim == 0 else x0
         P0 = P0.reshape(1, 1) if P0.ndim == 0 else P0
-    if x0.ndim not in (1, 2):
-        raise _kfast.KfastError(f"x0: expected shape ({n},) or (B, {n}), got {x0.shape}")
-    if P0.ndim not in (2, 3):
-        raise _kfast.KfastError(f"P0: expected shape ({n}, {n}) or (B, {n}, {n}), got {P0.shape}")
-    if u is not None:
+    if u is not None:  # the shapes of x0, P0 and u are checked by the core
         u = as_float64("u", u)
-        if u.ndim not in (2, 3):
-            raise _kfast.KfastError(f"u: expected shape (T, k) or (B, T, k), got {u.shape}")
     if threads is not None:
         if index("threads", threads) < 1:
             raise _kfast.KfastError(f"threads: must be >= 1, got {threads!r}")

@@ -30,9 +30,16 @@ impl LagWindow {
         LagWindow { n, lag, slots: Vec::new(), len: 0, scratch: Scratch::new(n, m) }
     }
 
+    /// A window with all its `lag + 1` slots allocated up front, for a time loop that should
+    /// allocate nothing (the batch smoother, whose lag is at most T − 1).
+    fn allocated(n: usize, m: usize, lag: usize) -> Self {
+        LagWindow { slots: vec![PastState::new(n); lag + 1], ..Self::new(n, m, lag) }
+    }
+
     /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
     fn begin_step(&mut self, ws: &Workspace<Dyn>) {
         if self.slots.len() <= self.lag {
+            // Only while an online window fills; `allocated` windows never get here.
             self.slots.push(PastState::new(self.n));
         }
         self.slots.rotate_right(1);
@@ -152,7 +159,7 @@ pub fn smooth_fixed_lag_into(
     check_len("x_smooth", x_out, steps * n)?;
     check_len("P_smooth", p_out, steps * n * n)?;
     let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), x0, p0);
-    let mut window = LagWindow::new(n, m, lag.min(steps - 1));
+    let mut window = LagWindow::allocated(n, m, lag.min(steps - 1));
     let emit = |s: usize, slot: &PastState, x_out: &mut [f64], p_out: &mut [f64]| {
         x_out[s * n..(s + 1) * n].copy_from_slice(&slot.x);
         p_out[s * n * n..(s + 1) * n * n].copy_from_slice(&slot.p);
