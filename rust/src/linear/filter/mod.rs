@@ -16,12 +16,13 @@ pub(crate) use step::Workspace;
 pub use streaming::KalmanFilter;
 
 use crate::core::dims::{with_dims, Buf, Dims};
+use crate::core::isa::run_best;
 pub use crate::core::Series;
 use crate::error::Result;
 use crate::linear::model::{LinearGaussian, StepView};
 use crate::linear::validate::check_converge_tol;
 pub(crate) use crate::linear::validate::{check_data, check_series};
-use step::{all_observed, overflowed};
+use step::{all_observed, overflowed, Features};
 
 /// How the filter runs: the covariance update form and whether to freeze the gains once the
 /// covariance has converged.
@@ -162,39 +163,54 @@ impl<D: Dims> LocalMatrices<D> {
 
 impl Run<'_> {
     /// The filter from the prior `(x0, p0)`, storing the outputs that are given; returns the
-    /// log-likelihood. On x86-64 CPUs with AVX2 the same code is compiled a second time for
-    /// them and chosen at run time (no fused multiply-adds, no reordered sums: results are the
-    /// same bits).
+    /// log-likelihood. Each kind of loop (constant model with or without N and gain freezing,
+    /// time-varying model) is its own function, compiled for each instruction set
+    /// ([`run_best`]): in one function they share registers and slow each other down.
     pub(crate) fn filter<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.filter_avx2(d, out) };
+        let plain = self.model.at(0).n.is_none() && self.converge_tol.is_none();
+        match (self.model.steps().is_none(), plain) {
+            (true, true) => run_best(
+                #[inline(always)]
+                move || self.filter_constant(d, out, Features::PLAIN),
+            ),
+            (true, false) => run_best(
+                #[inline(always)]
+                move || self.filter_constant(d, out, Features::ALL),
+            ),
+            (false, _) => run_best(
+                #[inline(always)]
+                move || self.filter_varying(d, out),
+            ),
         }
-        self.filter_steps(d, out)
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn filter_avx2<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
-        self.filter_steps(d, out)
-    }
-
-    /// The workspace lives here, on this function's stack, for the whole loop.
+    /// A constant model: its matrices are copied once into buffers of the call's sizes. The
+    /// workspace lives here, on this function's stack, for the whole loop.
     #[inline(always)]
-    fn filter_steps<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
-        let mut ws = Workspace::new(d, self.model.n_inputs(), self.x0, self.p0);
-        ws.configure(out.gain.is_some(), out.gain_pred.is_some(), self.converge_tol);
-        let total = if self.model.steps().is_none() {
-            let first = self.model.at(0);
-            let local = LocalMatrices::new(d, &first);
-            let sys = local.view(&first);
-            self.steps(&mut ws, out, |_| sys)?
-        } else {
-            self.steps(&mut ws, out, |t| self.model.at(t))?
-        };
+    fn filter_constant<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>, features: Features) -> Result<f64> {
+        let mut ws = self.workspace(d, out);
+        let first = self.model.at(0);
+        let local = LocalMatrices::new(d, &first);
+        let sys = local.view(&first);
+        let total = self.steps(&mut ws, out, |_| sys, features)?;
         out.store_next(ws.x_pred(), ws.p_pred());
         Ok(total)
+    }
+
+    /// A time-varying model.
+    #[inline(always)]
+    fn filter_varying<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
+        let mut ws = self.workspace(d, out);
+        let total = self.steps(&mut ws, out, |t| self.model.at(t), Features::ALL)?;
+        out.store_next(ws.x_pred(), ws.p_pred());
+        Ok(total)
+    }
+
+    #[inline(always)]
+    fn workspace<D: Dims>(&self, d: D, out: &FilterOutputs<'_>) -> Workspace<D> {
+        let mut ws = Workspace::new(d, self.model.n_inputs(), self.x0, self.p0);
+        ws.configure(out.gain.is_some(), out.gain_pred.is_some(), self.converge_tol);
+        ws
     }
 
     /// Update with `y[t]`, then the time update to `t + 1`, for every t.
@@ -212,6 +228,7 @@ impl Run<'_> {
         ws: &mut Workspace<D>,
         out: &mut FilterOutputs<'_>,
         at: impl Fn(usize) -> StepView<'m>,
+        features: Features,
     ) -> Result<f64> {
         let mut copy: Option<Box<Workspace<D>>> = None;
         let mut total = 0.0;
@@ -220,12 +237,12 @@ impl Run<'_> {
             let (y, u_t) = (self.y.row(t), self.u.map(|u| u.row(t)));
             out.store_prior(t, ws.x_pred(), ws.p_pred());
             if all_observed(y) {
-                ws.update_observed(&sys, y, u_t, self.form, t)?;
-                ws.predict_observed(&sys, u_t);
+                ws.update_observed(&sys, y, u_t, self.form, t, features)?;
+                ws.predict_observed(&sys, u_t, features);
             } else if D::FIXED {
                 let d = ws.dims();
                 let copy = copy.get_or_insert_with(|| Box::new(Workspace::new(d, 0, self.x0, self.p0)));
-                copy.copy_from(ws);
+                copy.copy_prior_from(ws);
                 copy.step_out_of_line(&sys, y, u_t, self.form, t)?;
                 ws.copy_from(copy);
             } else {

@@ -73,6 +73,25 @@ pub(crate) struct Workspace<D: Dims> {
     p_prev: D::Square,
 }
 
+/// Which parts of the recursion a time loop can meet, decided once per call. With neither
+/// (the common case) the fully observed step is compiled without the branches for them:
+/// they cost ~15% of a step at n = 4 even when never taken, because the code they guard
+/// keeps more values alive across the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Features {
+    /// The model has a cross-covariance N = E[w v'] (Söderström (6.25), (6.26)).
+    pub cross_cov: bool,
+    /// The gains may freeze once converged (`converge_tol`).
+    pub freezing: bool,
+}
+
+impl Features {
+    /// Everything possible: what the steps other than a time loop's fully observed ones use.
+    pub const ALL: Features = Features { cross_cov: true, freezing: true };
+    /// Neither N nor freezing.
+    pub const PLAIN: Features = Features { cross_cov: false, freezing: false };
+}
+
 /// The rows and columns of the observed components, gathered when some are missing.
 #[derive(Debug, Clone)]
 struct Partial<D: Dims> {
@@ -142,6 +161,18 @@ impl<D: Dims> Workspace<D> {
         self.x_pred.get_mut().copy_from_slice(x);
         self.p_pred.get_mut().copy_from_slice(p);
         symmetrize(self.p_pred.get_mut(), self.d.n());
+    }
+
+    /// Makes this workspace ready to take the step that `other` would take next: the same
+    /// configuration and prior x̂(t|t−1), P(t|t−1). Only for a step with a missing value (which
+    /// recomputes everything else, frozen gains included). Copying nothing else matters for
+    /// speed: what the time loop never reads back from its workspace stays in registers.
+    #[inline(always)]
+    pub fn copy_prior_from(&mut self, other: &Self) {
+        (self.d, self.k, self.converge_tol) = (other.d, other.k, other.converge_tol);
+        (self.want_gain_pred, self.want_gain) = (other.want_gain_pred, other.want_gain);
+        self.x_pred.clone_from(&other.x_pred);
+        self.p_pred.clone_from(&other.p_pred);
     }
 
     /// Makes this workspace a copy of `other` without allocating (vectors keep their
@@ -303,7 +334,7 @@ impl<D: Dims> Workspace<D> {
         t: usize,
     ) -> Result<()> {
         if all_observed(y) {
-            return self.update_observed(sys, y, u, form, t);
+            return self.update_observed(sys, y, u, form, t, Features::ALL);
         }
         self.update_missing(sys, y, u, form, t)
     }
@@ -327,7 +358,8 @@ impl<D: Dims> Workspace<D> {
     /// [`update`](Self::update) for a `y` with every component observed. Everything it does
     /// has the compile-time sizes of `D`: a time loop that calls only this and
     /// [`predict_observed`](Self::predict_observed) on a fixed-size workspace lets the compiler
-    /// keep the workspace in registers (see `Run::steps`).
+    /// keep the workspace in registers (see `Run::steps`). `features` must hold for this
+    /// workspace and `sys` (a constant at the call, so that what it rules out is compiled out).
     #[inline(always)]
     pub fn update_observed(
         &mut self,
@@ -336,10 +368,11 @@ impl<D: Dims> Workspace<D> {
         u: Option<&[f64]>,
         form: UpdateForm,
         t: usize,
+        features: Features,
     ) -> Result<()> {
         let (d, n, m) = (self.d, self.d.n(), self.d.m());
         self.innovation(sys, y, u);
-        if self.frozen {
+        if features.freezing && self.frozen {
             self.update.apply_mean(d, self.innov.get(), self.pht.get(), self.x_pred.get(), self.x_filt.get_mut());
             return self.check_finite(t);
         }
@@ -506,32 +539,35 @@ impl<D: Dims> Workspace<D> {
     /// `K_pred = F K + N S⁻¹` of the update just made.
     #[inline(always)]
     pub fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
-        self.time_update(sys, u, self.m_obs);
+        self.time_update(sys, u, self.m_obs, Features::ALL);
     }
 
     /// [`predict`](Self::predict) after [`update_observed`](Self::update_observed): all m
-    /// components observed, known at compile time for fixed sizes.
+    /// components observed, known at compile time for fixed sizes; `features` as there.
     #[inline(always)]
-    pub fn predict_observed(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
-        self.time_update(sys, u, self.d.m());
+    pub fn predict_observed(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, features: Features) {
+        self.time_update(sys, u, self.d.m(), features);
     }
 
     /// The time update after an update with `mo` observed components (`mo = m_obs`).
     #[inline(always)]
-    fn time_update(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, mo: usize) {
+    fn time_update(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, mo: usize, features: Features) {
         let (n, m) = (self.d.n(), self.d.m());
+        debug_assert!(features.cross_cov || sys.n.is_none());
+        debug_assert!(features.freezing || self.converge_tol.is_none());
+        let cross_cov = sys.n.filter(|_| features.cross_cov);
         let x_pred = self.x_pred.get_mut();
         mul_vec(x_pred, sys.f, self.x_filt.get(), n, n);
         if let (Some(b), Some(u)) = (sys.b, u) {
             mul_vec_add(x_pred, b, u, n, self.k);
         }
-        if self.frozen {
-            if let Some(nn) = sys.n {
+        if features.freezing && self.frozen {
+            if let Some(nn) = cross_cov {
                 mul_vec_add(x_pred, nn, self.update.s_inv_e(m), n, m);
             }
             return;
         }
-        if self.converge_tol.is_some() {
+        if features.freezing && self.converge_tol.is_some() {
             self.p_prev.get_mut().copy_from_slice(self.p_pred.get());
         }
         let fp = self.fp.get_mut();
@@ -542,18 +578,18 @@ impl<D: Dims> Workspace<D> {
         for (p, q) in p_pred.iter_mut().zip(&sys.q[..n * n]) {
             *p += q;
         }
-        if self.want_gain_pred || sys.n.is_some() {
+        if self.want_gain_pred || cross_cov.is_some() {
             if mo == m {
-                self.predictor_gain(m, sys);
+                self.predictor_gain(m, sys.f, cross_cov);
             } else {
                 self.gain_pred.get_mut().fill(0.0);
                 if mo > 0 {
-                    self.predictor_gain(mo, sys);
+                    self.predictor_gain(mo, sys.f, cross_cov);
                 }
             }
         }
         symmetrize(self.p_pred.get_mut(), n);
-        if let (Some(tol), true) = (self.converge_tol, mo == m) {
+        if let (Some(tol), true, true) = (self.converge_tol, mo == m, features.freezing) {
             let (p_pred, p_prev) = (self.p_pred.get(), self.p_prev.get());
             let change = p_pred.iter().zip(p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             let size = p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
@@ -562,16 +598,16 @@ impl<D: Dims> Workspace<D> {
     }
 
     /// K_pred = F K + N S⁻¹ over the `mo` observed components, and the N terms of the time
-    /// update (Söderström (6.25), (6.26)).
+    /// update (Söderström (6.25), (6.26)); `cross_cov` is N when the model has one.
     #[inline(always)]
-    fn predictor_gain(&mut self, mo: usize, sys: &StepView<'_>) {
+    fn predictor_gain(&mut self, mo: usize, f: &[f64], cross_cov: Option<&[f64]>) {
         let (n, m) = (self.d.n(), self.d.m());
         // F K (n × mo), with K = (K')'.
         let gain = &mut self.gain_o.get_mut()[..n * mo];
         transpose(gain, self.update.gain_t(mo, n), mo, n);
         let fk = &mut self.f_gain.get_mut()[..n * mo];
-        mul(fk, sys.f, gain, n, n, mo);
-        if let Some(nn) = sys.n {
+        mul(fk, f, gain, n, n, mo);
+        if let Some(nn) = cross_cov {
             let n_o = if mo == m { &nn[..n * m] } else { &self.partial.n.get()[..n * mo] };
             // x̂(t+1|t) += N S⁻¹ e
             mul_vec_add(self.x_pred.get_mut(), n_o, self.update.s_inv_e(mo), n, mo);
