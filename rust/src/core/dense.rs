@@ -3,6 +3,15 @@
 //! The filter's matrices are small (n ≤ 12 in most uses), so these are plain loops the compiler
 //! can unroll once the sizes are known; they never allocate. An `a[r×c]` in the docs is a slice
 //! of `r * c` numbers holding a row-major `r × c` matrix.
+//!
+//! The matrix products take the [`Dims`] they serve as a type: with compile-time sizes a plain
+//! loop over rows unrolls best; with run-time sizes the blocked form keeps a few results in
+//! registers (see `for_column_blocks`). Both sum every entry in the same order, from the first
+//! term, so they give the same numbers (the sign of an exact zero aside: the plain dot products
+//! start from −0.0, which the compiler can drop, while the blocked sums start from 0.0, which
+//! vectorizes better — measured both ways, ~10% of a step either side).
+
+use crate::core::dims::Dims;
 
 /// Products with at least this many multiply-adds go to faer's blocked, SIMD matrix product;
 /// smaller ones stay in the plain loops (which the compiler unrolls for fixed sizes). Measured
@@ -20,72 +29,201 @@ fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {
 
 /// `c[m×n] = a[m×k] · b[k×n]`.
 #[inline(always)]
-pub(crate) fn mul(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
-    if m * k * n >= FAER_MIN_FLOPS {
+pub(crate) fn mul<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
+    if !D::FIXED && m * k * n >= FAER_MIN_FLOPS {
         let (a, b) = (faer::MatRef::from_row_major_slice(a, m, k), faer::MatRef::from_row_major_slice(b, k, n));
         return faer_mul(c, a, b);
     }
-    for i in 0..m {
-        let ci = &mut c[i * n..(i + 1) * n];
-        ci.fill(0.0);
-        for l in 0..k {
-            let ail = a[i * k + l];
-            let bl = &b[l * n..(l + 1) * n];
-            for (cij, blj) in ci.iter_mut().zip(bl) {
-                *cij += ail * blj;
+    if D::UNROLL {
+        for i in 0..m {
+            let ci = &mut c[i * n..(i + 1) * n];
+            ci.fill(0.0);
+            for l in 0..k {
+                let ail = a[i * k + l];
+                for (cij, blj) in ci.iter_mut().zip(&b[l * n..(l + 1) * n]) {
+                    *cij += ail * blj;
+                }
             }
+        }
+        return;
+    }
+    blocked_product(c, a, b, m, k, n, false);
+}
+
+/// `c[m×n] = a[m×k] · b[k×n]` (with `upper`, m = n and only the upper triangle) in blocks of
+/// up to 4 columns whose sums are held in registers while they run over the inner dimension:
+/// with run-time sizes a loop over a whole row would keep its sums in memory, and each term
+/// would wait for the previous one's store to be read back. Each sum runs in order from the
+/// first term, as in the plain loops. (Blocks of 2 rows × 8 columns, four independent vector
+/// sums, measured slower: 1.2 against 0.93 µs a step at n = 9.)
+#[inline(always)]
+fn blocked_product(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize, upper: bool) {
+    for i in 0..m {
+        let ai = &a[i * k..(i + 1) * k];
+        let from = if upper { i } else { 0 };
+        for_column_blocks(from, n, |j, w| match w {
+            4 => row_times::<4>(&mut c[i * n + j..], ai, b, n, j),
+            2 => row_times::<2>(&mut c[i * n + j..], ai, b, n, j),
+            _ => row_times::<1>(&mut c[i * n + j..], ai, b, n, j),
+        });
+    }
+}
+
+/// Calls `block(j, w)` for blocks of `w` = 4, 2 or 1 columns covering `from..n`.
+#[inline(always)]
+fn for_column_blocks(from: usize, n: usize, mut block: impl FnMut(usize, usize)) {
+    let mut j = from;
+    while j + 4 <= n {
+        block(j, 4);
+        j += 4;
+    }
+    for w in [2, 1] {
+        if j + w <= n {
+            block(j, w);
+            j += w;
         }
     }
 }
 
+/// `c[..W] = a_row · b[:, j..j+W]` (`b` with `n` columns).
+#[inline(always)]
+fn row_times<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], n: usize, j: usize) {
+    let mut acc = [0.0; W];
+    for (l, &a_l) in a_row.iter().enumerate() {
+        let b_l = &b[l * n + j..l * n + j + W];
+        for q in 0..W {
+            acc[q] += a_l * b_l[q];
+        }
+    }
+    c[..W].copy_from_slice(&acc);
+}
+
+/// `c[..W] = a_row · b[j..j+W, :]'` (`b` with `k` columns): W dot products, each in order
+/// from the first term, computed side by side.
+#[inline(always)]
+fn row_times_t<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], k: usize, j: usize) {
+    let mut acc = [0.0; W];
+    for (l, &a_l) in a_row.iter().enumerate() {
+        for q in 0..W {
+            acc[q] += a_l * b[(j + q) * k + l];
+        }
+    }
+    c[..W].copy_from_slice(&acc);
+}
+
+/// The largest `b` (in numbers) that the run-time-size `a · b'` products copy transposed into
+/// a local array (16 × 16), so that their inner loops read rows (vector loads) instead of
+/// columns.
+const TRANSPOSED_MAX: usize = 256;
+
 /// `c[m×n] = a[m×k] · b[n×k]'`.
 #[inline(always)]
-pub(crate) fn mul_bt(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
-    if m * k * n >= FAER_MIN_FLOPS {
+pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
+    if !D::FIXED && m * k * n >= FAER_MIN_FLOPS {
         let a = faer::MatRef::from_row_major_slice(a, m, k);
         let b = faer::MatRef::from_row_major_slice(b, n, k).transpose();
         return faer_mul(c, a, b);
     }
+    if D::UNROLL {
+        for i in 0..m {
+            for j in 0..n {
+                c[i * n + j] = dot_in_order(&a[i * k..(i + 1) * k], &b[j * k..(j + 1) * k]);
+            }
+        }
+        return;
+    }
+    if n * k <= TRANSPOSED_MAX {
+        // b' into a local array, then the product with contiguous rows.
+        let mut bt = [0.0; TRANSPOSED_MAX];
+        transpose(&mut bt, b, n, k);
+        return mul::<D>(c, a, &bt[..n * k], m, k, n);
+    }
     for i in 0..m {
         let ai = &a[i * k..(i + 1) * k];
-        for j in 0..n {
-            let bj = &b[j * k..(j + 1) * k];
-            c[i * n + j] = ai.iter().zip(bj).map(|(x, y)| x * y).sum();
-        }
+        for_column_blocks(0, n, |j, w| match w {
+            4 => row_times_t::<4>(&mut c[i * n + j..], ai, b, k, j),
+            2 => row_times_t::<2>(&mut c[i * n + j..], ai, b, k, j),
+            _ => row_times_t::<1>(&mut c[i * n + j..], ai, b, k, j),
+        });
     }
 }
 
 /// `c[n×n] = a[n×k] · b[k×n]` for a product known to be symmetric (e.g. P H' S⁻¹ H P): one
 /// triangle is computed and mirrored (large sizes: the full product, then symmetrized).
 #[inline(always)]
-pub(crate) fn mul_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
-    if n * k * n >= FAER_MIN_FLOPS {
-        mul(c, a, b, n, k, n);
+pub(crate) fn mul_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
+    if !D::FIXED && n * k * n >= FAER_MIN_FLOPS {
+        mul::<D>(c, a, b, n, k, n);
         return symmetrize(c, n);
     }
-    for i in 0..n {
-        for j in i..n {
-            let v: f64 = (0..k).map(|l| a[i * k + l] * b[l * n + j]).sum();
-            c[i * n + j] = v;
-            c[j * n + i] = v;
+    if D::UNROLL {
+        for i in 0..n {
+            for j in i..n {
+                let mut v = -0.0;
+                for l in 0..k {
+                    v += a[i * k + l] * b[l * n + j];
+                }
+                c[i * n + j] = v;
+                c[j * n + i] = v;
+            }
         }
+        return;
     }
+    blocked_product(c, a, b, n, k, n, true);
+    mirror_upper(c, n);
 }
 
 /// `c[n×n] = a[n×k] · b[n×k]'` for a product known to be symmetric (e.g. (F P) F'): one
 /// triangle is computed and mirrored.
 #[inline(always)]
-pub(crate) fn mul_bt_sym(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
-    if n * k * n >= FAER_MIN_FLOPS {
-        mul_bt(c, a, b, n, k, n);
+pub(crate) fn mul_bt_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
+    if !D::FIXED && n * k * n >= FAER_MIN_FLOPS {
+        mul_bt::<D>(c, a, b, n, k, n);
         return symmetrize(c, n);
+    }
+    if D::UNROLL {
+        for i in 0..n {
+            let ai = &a[i * k..(i + 1) * k];
+            for j in i..n {
+                let v = dot_in_order(ai, &b[j * k..(j + 1) * k]);
+                c[i * n + j] = v;
+                c[j * n + i] = v;
+            }
+        }
+        return;
+    }
+    if n * k <= TRANSPOSED_MAX {
+        let mut bt = [0.0; TRANSPOSED_MAX];
+        transpose(&mut bt, b, n, k);
+        return mul_sym::<D>(c, a, &bt[..n * k], n, k);
     }
     for i in 0..n {
         let ai = &a[i * k..(i + 1) * k];
-        for j in i..n {
-            let v: f64 = ai.iter().zip(&b[j * k..(j + 1) * k]).map(|(x, y)| x * y).sum();
-            c[i * n + j] = v;
-            c[j * n + i] = v;
+        for_column_blocks(i, n, |j, w| match w {
+            4 => row_times_t::<4>(&mut c[i * n + j..], ai, b, k, j),
+            2 => row_times_t::<2>(&mut c[i * n + j..], ai, b, k, j),
+            _ => row_times_t::<1>(&mut c[i * n + j..], ai, b, k, j),
+        });
+    }
+    mirror_upper(c, n);
+}
+
+/// `a · b` summed in order from the first term (as the blocked kernels sum).
+#[inline(always)]
+fn dot_in_order(a: &[f64], b: &[f64]) -> f64 {
+    let mut v = -0.0;
+    for (x, y) in a.iter().zip(b) {
+        v += x * y;
+    }
+    v
+}
+
+/// Copies the strict upper triangle of `c[n×n]` onto the lower one.
+#[inline(always)]
+fn mirror_upper(c: &mut [f64], n: usize) {
+    for i in 0..n {
+        for j in i + 1..n {
+            c[j * n + i] = c[i * n + j];
         }
     }
 }
@@ -320,6 +458,7 @@ fn scale_by_inv_diag(l: &[f64], b: &mut [f64], n: usize, r: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::dims::{Dyn, Fixed};
 
     #[test]
     fn ldl_solves_a_spd_system() {
@@ -367,7 +506,7 @@ mod tests {
         let b = x;
         lu_solve(&lu, &piv, &mut x, 3, 2);
         let mut back = [0.0; 6];
-        mul(&mut back, &a, &x, 3, 3, 2);
+        mul::<Dyn>(&mut back, &a, &x, 3, 3, 2);
         for (got, want) in back.iter().zip(b) {
             assert!((got - want).abs() < 1e-12, "{back:?}");
         }
@@ -380,9 +519,36 @@ mod tests {
         transpose(&mut at, &a, 2, 3);
         let mut c1 = [0.0; 4];
         let mut c2 = [0.0; 4];
-        mul(&mut c1, &a, &at, 2, 3, 2);
-        mul_bt(&mut c2, &a, &a, 2, 3, 2);
+        mul::<Dyn>(&mut c1, &a, &at, 2, 3, 2);
+        mul_bt::<Dyn>(&mut c2, &a, &a, 2, 3, 2);
         assert_eq!(c1, c2);
         assert_eq!(c1, [14.0, 32.0, 32.0, 77.0]);
+    }
+
+    /// The plain loops (compile-time sizes) and the blocked ones (run-time sizes) give the
+    /// same bits for every shape, including those that end in 2- and 1-column blocks.
+    #[test]
+    fn plain_and_blocked_products_are_the_same_bits() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (m, k, n) in [(1, 1, 1), (2, 3, 5), (5, 5, 5), (7, 3, 6), (3, 7, 7), (6, 2, 9), (8, 8, 3)] {
+            let a: Vec<f64> = (0..m.max(n) * k).map(|_| next()).collect();
+            let b: Vec<f64> = (0..k * n.max(m)).map(|_| next()).collect();
+            let bt: Vec<f64> = (0..n.max(m) * k).map(|_| next()).collect();
+            let both = |f: &dyn Fn(&mut [f64], bool)| {
+                let (mut plain, mut blocked) = (vec![0.0; m.max(n) * n], vec![0.0; m.max(n) * n]);
+                f(&mut plain, true);
+                f(&mut blocked, false);
+                assert_eq!(plain, blocked, "({m}, {k}, {n})");
+            };
+            type F = Fixed<1, 1>;
+            both(&|c, p| if p { mul::<F>(c, &a, &b, m, k, n) } else { mul::<Dyn>(c, &a, &b, m, k, n) });
+            both(&|c, p| if p { mul_bt::<F>(c, &a, &bt, m, k, n) } else { mul_bt::<Dyn>(c, &a, &bt, m, k, n) });
+            both(&|c, p| if p { mul_sym::<F>(c, &a, &b, n, k) } else { mul_sym::<Dyn>(c, &a, &b, n, k) });
+            both(&|c, p| if p { mul_bt_sym::<F>(c, &a, &bt, n, k) } else { mul_bt_sym::<Dyn>(c, &a, &bt, n, k) });
+        }
     }
 }

@@ -26,6 +26,11 @@ pub(crate) trait Dims: Copy + Send + Sync {
     /// address never leaves the loop (see `Run::steps` in `linear/filter`).
     const FIXED: bool;
 
+    /// Whether the matrix products should be plain loops for the compiler to unroll whole
+    /// (compile-time sizes up to 8); otherwise they run in register blocks
+    /// (`core::dense`), which also compile to much less code.
+    const UNROLL: bool;
+
     /// The state size n.
     fn n(self) -> usize;
     /// The output size m.
@@ -63,6 +68,7 @@ impl Dims for Dyn {
     type StateObs = Vec<f64>;
 
     const FIXED: bool = false;
+    const UNROLL: bool = false;
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -86,6 +92,7 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
     type StateObs = [[f64; M]; N];
 
     const FIXED: bool = true;
+    const UNROLL: bool = N <= 8;
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -134,67 +141,73 @@ impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
     }
 }
 
-/// Evaluates `$body` with `$d` bound to the compile-time sizes when (n, m) is one of the common
-/// small ones, so that the kernels are unrolled for them, and to the run-time sizes otherwise:
+/// The sizes [`with_dims!`] compiles, in words.
+pub(crate) const FIXED_SIZES: &str = "n <= 12 with m <= min(n, 4) (compile-time sizes; others run-time)";
+
+/// Evaluates `$body` with `$d` bound to compile-time sizes for n ≤ 12 and m ≤ min(n, 4), so
+/// that the kernels are unrolled for them, and to the run-time sizes otherwise:
 /// `with_dims!(n, m, |d| run.filter(d, &mut out))`. The body is compiled once per size; the
 /// arithmetic is the same either way.
+///
+/// Why every pair up to 12 × 4: a step with run-time sizes costs 2.5–4× one with compile-time
+/// sizes (loop control and bounds checks on loops of 5–12 trips, sums that wait on each
+/// other), so any size left out is a cliff between its neighbours (issue 11 measured n = 5
+/// at 9× n = 4). Each pair costs ~6 s of release build time.
 macro_rules! with_dims {
     ($n:expr, $m:expr, |$d:ident| $body:expr) => {{
         use $crate::core::dims::{Dyn, Fixed};
         match ($n, $m) {
-            (1, 1) => {
-                let $d = Fixed::<1, 1>;
-                $body
-            }
-            (2, 1) => {
-                let $d = Fixed::<2, 1>;
-                $body
-            }
-            (2, 2) => {
-                let $d = Fixed::<2, 2>;
-                $body
-            }
-            (3, 1) => {
-                let $d = Fixed::<3, 1>;
-                $body
-            }
-            (3, 2) => {
-                let $d = Fixed::<3, 2>;
-                $body
-            }
-            (3, 3) => {
-                let $d = Fixed::<3, 3>;
-                $body
-            }
-            (4, 1) => {
-                let $d = Fixed::<4, 1>;
-                $body
-            }
-            (4, 2) => {
-                let $d = Fixed::<4, 2>;
-                $body
-            }
-            (4, 4) => {
-                let $d = Fixed::<4, 4>;
-                $body
-            }
-            (6, 2) => {
-                let $d = Fixed::<6, 2>;
-                $body
-            }
-            (6, 3) => {
-                let $d = Fixed::<6, 3>;
-                $body
-            }
-            (8, 4) => {
-                let $d = Fixed::<8, 4>;
-                $body
-            }
+            (1, 1) => with_dims!(@fixed 1, 1, $d, $body),
+            (2, 1) => with_dims!(@fixed 2, 1, $d, $body),
+            (2, 2) => with_dims!(@fixed 2, 2, $d, $body),
+            (3, 1) => with_dims!(@fixed 3, 1, $d, $body),
+            (3, 2) => with_dims!(@fixed 3, 2, $d, $body),
+            (3, 3) => with_dims!(@fixed 3, 3, $d, $body),
+            (4, 1) => with_dims!(@fixed 4, 1, $d, $body),
+            (4, 2) => with_dims!(@fixed 4, 2, $d, $body),
+            (4, 3) => with_dims!(@fixed 4, 3, $d, $body),
+            (4, 4) => with_dims!(@fixed 4, 4, $d, $body),
+            (5, 1) => with_dims!(@fixed 5, 1, $d, $body),
+            (5, 2) => with_dims!(@fixed 5, 2, $d, $body),
+            (5, 3) => with_dims!(@fixed 5, 3, $d, $body),
+            (5, 4) => with_dims!(@fixed 5, 4, $d, $body),
+            (6, 1) => with_dims!(@fixed 6, 1, $d, $body),
+            (6, 2) => with_dims!(@fixed 6, 2, $d, $body),
+            (6, 3) => with_dims!(@fixed 6, 3, $d, $body),
+            (6, 4) => with_dims!(@fixed 6, 4, $d, $body),
+            (7, 1) => with_dims!(@fixed 7, 1, $d, $body),
+            (7, 2) => with_dims!(@fixed 7, 2, $d, $body),
+            (7, 3) => with_dims!(@fixed 7, 3, $d, $body),
+            (7, 4) => with_dims!(@fixed 7, 4, $d, $body),
+            (8, 1) => with_dims!(@fixed 8, 1, $d, $body),
+            (8, 2) => with_dims!(@fixed 8, 2, $d, $body),
+            (8, 3) => with_dims!(@fixed 8, 3, $d, $body),
+            (8, 4) => with_dims!(@fixed 8, 4, $d, $body),
+            (9, 1) => with_dims!(@fixed 9, 1, $d, $body),
+            (9, 2) => with_dims!(@fixed 9, 2, $d, $body),
+            (9, 3) => with_dims!(@fixed 9, 3, $d, $body),
+            (9, 4) => with_dims!(@fixed 9, 4, $d, $body),
+            (10, 1) => with_dims!(@fixed 10, 1, $d, $body),
+            (10, 2) => with_dims!(@fixed 10, 2, $d, $body),
+            (10, 3) => with_dims!(@fixed 10, 3, $d, $body),
+            (10, 4) => with_dims!(@fixed 10, 4, $d, $body),
+            (11, 1) => with_dims!(@fixed 11, 1, $d, $body),
+            (11, 2) => with_dims!(@fixed 11, 2, $d, $body),
+            (11, 3) => with_dims!(@fixed 11, 3, $d, $body),
+            (11, 4) => with_dims!(@fixed 11, 4, $d, $body),
+            (12, 1) => with_dims!(@fixed 12, 1, $d, $body),
+            (12, 2) => with_dims!(@fixed 12, 2, $d, $body),
+            (12, 3) => with_dims!(@fixed 12, 3, $d, $body),
+            (12, 4) => with_dims!(@fixed 12, 4, $d, $body),
             (n, m) => {
                 let $d = Dyn { n, m };
                 $body
             }
         }
+    }};
+    (@fixed $n:literal, $m:literal, $d:ident, $body:expr) => {{
+        let $d = Fixed::<$n, $m>;
+        $body
     }};
 }
 pub(crate) use with_dims;

@@ -146,7 +146,7 @@ impl<D: Dims> GaussianUpdate<D> {
             None => {
                 // P − K S K' = P − C K'
                 let ksk = self.nn_a.get_mut();
-                mul_sym(ksk, cross_cov, gain_t, n, mo);
+                mul_sym::<D>(ksk, cross_cov, gain_t, n, mo);
                 for ((pf, p), ksk) in p_filt.iter_mut().zip(p_pred).zip(ksk.iter()) {
                     *pf = p - ksk;
                 }
@@ -156,7 +156,7 @@ impl<D: Dims> GaussianUpdate<D> {
                 let gain = &mut self.gain.get_mut()[..n * mo];
                 transpose(gain, gain_t, mo, n);
                 let a = self.nn_a.get_mut();
-                mul(a, gain, &h[..mo * n], n, mo, n);
+                mul::<D>(a, gain, &h[..mo * n], n, mo, n);
                 for v in a.iter_mut() {
                     *v = -*v;
                 }
@@ -165,16 +165,16 @@ impl<D: Dims> GaussianUpdate<D> {
                 }
                 // A P = P − K (H P) with H P = C': n² m multiply-adds instead of n³
                 let ap = self.nn_b.get_mut();
-                mul_bt(ap, gain, cross_cov, n, mo, n);
+                mul_bt::<D>(ap, gain, cross_cov, n, mo, n);
                 for (v, p) in ap.iter_mut().zip(p_pred) {
                     *v = p - *v;
                 }
-                mul_bt_sym(p_filt, ap, a, n, n);
+                mul_bt_sym::<D>(p_filt, ap, a, n, n);
                 // K R K' = K (R K')
                 let r_gain_t = &mut self.r_gain_t.get_mut()[..mo * n];
-                mul(r_gain_t, &r[..mo * mo], gain_t, mo, mo, n);
+                mul::<D>(r_gain_t, &r[..mo * mo], gain_t, mo, mo, n);
                 let krk = self.nn_b.get_mut();
-                mul_sym(krk, gain, r_gain_t, n, mo);
+                mul_sym::<D>(krk, gain, r_gain_t, n, mo);
                 for (pf, krk) in p_filt.iter_mut().zip(krk.iter()) {
                     *pf += krk;
                 }

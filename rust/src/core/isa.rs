@@ -33,3 +33,14 @@ fn run_baseline<R>(job: impl FnOnce() -> R) -> R {
 unsafe fn run_avx2<R>(job: impl FnOnce() -> R) -> R {
     job()
 }
+
+/// The instruction set the time loops run with on this CPU: `"avx2"` (x86-64 with AVX2) or
+/// `"baseline"` (the target's default: SSE2 on x86-64, NEON on aarch64). Results are the same
+/// bits either way.
+pub fn instruction_set() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        return "avx2";
+    }
+    "baseline"
+}

@@ -13,6 +13,7 @@
 
 use crate::core::alloc::check_f64_arrays;
 use crate::core::dense::{mul, mul_bt, mul_vec, mul_vec_add, symmetrize};
+use crate::core::dims::Dyn;
 use crate::core::validate::check_prior;
 use crate::core::Series;
 use crate::error::{Error, Result};
@@ -67,8 +68,8 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
             mul_vec_add(yj, d, u, m, k);
         }
         let sj = &mut out.y_cov[j * m * m..(j + 1) * m * m];
-        mul_bt(&mut tmp_nm, &pc, sys.h, n, n, m);
-        mul(sj, sys.h, &tmp_nm, m, n, m);
+        mul_bt::<Dyn>(&mut tmp_nm, &pc, sys.h, n, n, m);
+        mul::<Dyn>(sj, sys.h, &tmp_nm, m, n, m);
         for (s, r) in sj.iter_mut().zip(sys.r) {
             *s += r;
         }
@@ -78,8 +79,8 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
             mul_vec_add(&mut tmp_n, b, u, n, k);
         }
         xc.copy_from_slice(&tmp_n);
-        mul(&mut tmp_nn, sys.f, &pc, n, n, n);
-        mul_bt(&mut pc, &tmp_nn, sys.f, n, n, n);
+        mul::<Dyn>(&mut tmp_nn, sys.f, &pc, n, n, n);
+        mul_bt::<Dyn>(&mut pc, &tmp_nn, sys.f, n, n, n);
         for (pv, q) in pc.iter_mut().zip(sys.q) {
             *pv += q;
         }

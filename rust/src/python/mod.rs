@@ -256,6 +256,16 @@ fn check_alloc(arg: &str, shapes: Vec<Vec<usize>>) -> PyResult<()> {
     })
 }
 
+/// `kernel_info()`: how the compiled loops run on this machine, for benchmarks and bug
+/// reports: `{"instruction_set": "avx2" | "baseline", "fixed_sizes": "..."}`.
+#[pyfunction]
+fn kernel_info(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
+    let info = pyo3::types::PyDict::new(py);
+    info.set_item("instruction_set", crate::instruction_set())?;
+    info.set_item("fixed_sizes", crate::core::dims::FIXED_SIZES)?;
+    Ok(info)
+}
+
 /// The fields a smoother adds to the filter's.
 const SMOOTH_FIELDS: [&str; 3] = ["x_smooth", "P_smooth", "P_lag1"];
 
@@ -313,6 +323,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
     m.add_function(wrap_pyfunction!(model::filter_batch, m)?)?;
     m.add_function(wrap_pyfunction!(check_alloc, m)?)?;
+    m.add_function(wrap_pyfunction!(kernel_info, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;

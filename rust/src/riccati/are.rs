@@ -401,7 +401,7 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
     for it in 1..=100 {
         let (a, g, h) = (ak.get_mut(), gk.get_mut(), hk.get_mut());
         let w = w.get_mut();
-        mul(w, g, h, n, n, n);
+        mul::<Dyn>(w, g, h, n, n, n);
         for i in 0..n {
             w[i * n + i] += 1.0;
         }
@@ -410,16 +410,16 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
         v2.copy_from_slice(g);
         solve_twice(w, &mut piv, v1, v2, n);
         // G + A V2 A'
-        mul(tmp, a, v2, n, n, n);
-        mul_bt(next, tmp, a, n, n, n);
+        mul::<Dyn>(tmp, a, v2, n, n, n);
+        mul_bt::<Dyn>(next, tmp, a, n, n, n);
         for (gi, di) in g.iter_mut().zip(next.iter()) {
             *gi += di;
         }
         symmetrize(g, n);
         // H + A' H V1
-        mul(tmp, h, v1, n, n, n);
+        mul::<Dyn>(tmp, h, v1, n, n, n);
         transpose(at, a, n, n);
-        mul(next, at, tmp, n, n, n);
+        mul::<Dyn>(next, at, tmp, n, n, n);
         let (mut change, mut size) = (0.0f64, 0.0f64);
         for (hi, di) in h.iter_mut().zip(next.iter()) {
             *hi += di;
@@ -427,7 +427,7 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
         }
         symmetrize(h, n);
         // A V1
-        mul(next, a, v1, n, n, n);
+        mul::<Dyn>(next, a, v1, n, n, n);
         a.copy_from_slice(next);
         for v in h.iter() {
             size = size.max(v.abs());

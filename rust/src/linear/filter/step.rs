@@ -465,9 +465,9 @@ impl<D: Dims> Workspace<D> {
     fn measurement_covariances(&mut self, sys: &StepView<'_>) {
         let (n, m) = (self.d.n(), self.d.m());
         let pht = self.pht.get_mut();
-        mul_bt(pht, self.p_pred.get(), sys.h, n, n, m);
+        mul_bt::<D>(pht, self.p_pred.get(), sys.h, n, n, m);
         let s = self.s_full.get_mut();
-        mul(s, sys.h, pht, m, n, m);
+        mul::<D>(s, sys.h, pht, m, n, m);
         for (s, r) in s.iter_mut().zip(&sys.r[..m * m]) {
             *s += r;
         }
@@ -571,9 +571,9 @@ impl<D: Dims> Workspace<D> {
             self.p_prev.get_mut().copy_from_slice(self.p_pred.get());
         }
         let fp = self.fp.get_mut();
-        mul(fp, sys.f, self.p_filt.get(), n, n, n);
+        mul::<D>(fp, sys.f, self.p_filt.get(), n, n, n);
         let p_pred = self.p_pred.get_mut();
-        mul_bt_sym(p_pred, fp, sys.f, n, n);
+        mul_bt_sym::<D>(p_pred, fp, sys.f, n, n);
         // `[..n * n]`: a loop over the compile-time n (Q is n × n).
         for (p, q) in p_pred.iter_mut().zip(&sys.q[..n * n]) {
             *p += q;
@@ -606,7 +606,7 @@ impl<D: Dims> Workspace<D> {
         let gain = &mut self.gain_o.get_mut()[..n * mo];
         transpose(gain, self.update.gain_t(mo, n), mo, n);
         let fk = &mut self.f_gain.get_mut()[..n * mo];
-        mul(fk, f, gain, n, n, mo);
+        mul::<D>(fk, f, gain, n, n, mo);
         if let Some(nn) = cross_cov {
             let n_o = if mo == m { &nn[..n * m] } else { &self.partial.n.get()[..n * mo] };
             // x̂(t+1|t) += N S⁻¹ e

@@ -15,6 +15,7 @@
 //! and e exactly as in the filter.
 
 use crate::core::dense::{ldl_solve, mul, mul_bt, mul_vec_add, symmetrize, transpose};
+use crate::core::dims::Dyn;
 use crate::linear::filter::step::LastUpdate;
 
 /// x̂(s|t−1), P(s|t−1) and C = E[x̃(s|t−1) x̃(t|t−1)'] for one past time s.
@@ -52,7 +53,7 @@ impl Scratch {
     pub fn set_closed_loop(&mut self, f: &[f64], h: &[f64], gain_pred: &[f64]) {
         let n = self.n;
         let m = gain_pred.len() / n;
-        mul(&mut self.closed_loop, gain_pred, h, n, m, n);
+        mul::<Dyn>(&mut self.closed_loop, gain_pred, h, n, m, n);
         for (a, fv) in self.closed_loop.iter_mut().zip(f) {
             *a = fv - *a;
         }
@@ -78,14 +79,14 @@ impl PastState {
             return;
         }
         let cht = &mut sc.cht[..n * mo];
-        mul_bt(cht, &self.c, last.h, n, n, mo);
+        mul_bt::<Dyn>(cht, &self.c, last.h, n, n, mo);
         // x̂(s|t) = x̂(s|t−1) + C H' (S⁻¹ e)
         mul_vec_add(&mut self.x, cht, last.s_inv_e, n, mo);
         // P(s|t) = P(s|t−1) − (C H') S⁻¹ (C H')'
         let w = &mut sc.s_inv_hct[..mo * n];
         transpose(w, cht, n, mo);
         ldl_solve(last.s_factor, w, mo, n);
-        mul(&mut sc.nn, cht, w, n, mo, n);
+        mul::<Dyn>(&mut sc.nn, cht, w, n, mo, n);
         for (p, d) in self.p.iter_mut().zip(&sc.nn) {
             *p -= d;
         }
@@ -95,7 +96,7 @@ impl PastState {
     /// C(t+1) = C(t) (F − K_pred(t) H)', with `sc.closed_loop` set for step t.
     pub fn advance(&mut self, sc: &mut Scratch) {
         let n = sc.n;
-        mul_bt(&mut sc.nn, &self.c, &sc.closed_loop, n, n, n);
+        mul_bt::<Dyn>(&mut sc.nn, &self.c, &sc.closed_loop, n, n, n);
         self.c.copy_from_slice(&sc.nn);
     }
 }

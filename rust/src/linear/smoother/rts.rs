@@ -170,10 +170,10 @@ impl Backward<'_> {
         let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
         // Jt = J' = P(t+1|t)⁻¹ (F P(t|t) − N K')
         let jt = sc.jt.get_mut();
-        mul(jt, sys.f, p_cur, n, n, n);
+        mul::<D>(jt, sys.f, p_cur, n, n, n);
         if let Some(nmat) = sys.n {
             let tmp = sc.tmp.get_mut();
-            mul_bt(tmp, nmat, &self.priors.gain[t * n * m..(t + 1) * n * m], n, m, n);
+            mul_bt::<D>(tmp, nmat, &self.priors.gain[t * n * m..(t + 1) * n * m], n, m, n);
             for (j, d) in jt.iter_mut().zip(tmp.iter()) {
                 *j -= d;
             }
@@ -194,15 +194,15 @@ impl Backward<'_> {
             *d = ps - pp;
         }
         let tmp = sc.tmp.get_mut();
-        mul(tmp, dp, jt, n, n, n);
-        mul_sym(dp, j, tmp, n, n);
+        mul::<D>(tmp, dp, jt, n, n, n);
+        mul_sym::<D>(dp, j, tmp, n, n);
         for (p, d) in p_cur.iter_mut().zip(dp.iter()) {
             *p += d;
         }
         symmetrize(p_cur, n);
         // P(t+1, t | T−1) = P(t+1|T−1) J'
         if let Some(l) = p_lag1 {
-            mul(&mut l[(t + 1) * nn..(t + 2) * nn], p_next, jt, n, n, n);
+            mul::<D>(&mut l[(t + 1) * nn..(t + 2) * nn], p_next, jt, n, n, n);
         }
         Ok(())
     }
