@@ -598,24 +598,37 @@ def mk_dx_smooth(y):
 
 
 # ---- C loop -------------------------------------------------------------------
-_CLOOP = None
+# Two builds of the same kf_cv.c.  C_REF (gcc -O3 -march=native) is THE
+# reference of issue #11 (kfast must beat it) and of the cross-checks.  C_128
+# adds -mprefer-vector-width=128: on AVX-512 machines (Zen 4) -march=native lets
+# gcc use wider vectors, which are slower here than 128-bit vectors with FMA, so
+# that row shows what the same C gets with better flags.
+from cloop import DEFAULT_FLAGS as C_REF  # noqa: E402
+C_128 = (*C_REF, "-mprefer-vector-width=128")
+_CLOOPS: dict = {}  # (n, m, flags) -> CLoop or the build's exception
 
 
-def c_loop():
-    global _CLOOP
-    if _CLOOP is None:
+def c_name(flags=C_REF):
+    """Row label of a C-loop build: its optimisation flags, verbatim."""
+    return "C loop " + " ".join(flags)
+
+
+def c_loop(flags=C_REF, n=4, m=2):
+    """The C loop compiled with `flags` for N=n, M=m; built once per process."""
+    key = (n, m, tuple(flags))
+    if key not in _CLOOPS:
         from cloop import CLoop
         try:
-            _CLOOP = CLoop.build()
+            _CLOOPS[key] = CLoop.build(n, m, flags=flags)
         except Exception as e:  # noqa: BLE001
-            _CLOOP = e
-    if isinstance(_CLOOP, Exception):
-        raise Unavailable("C build failed: " + _short_err(_CLOOP))
-    return _CLOOP
+            _CLOOPS[key] = e
+    if isinstance(_CLOOPS[key], Exception):
+        raise Unavailable("C build failed: " + _short_err(_CLOOPS[key]))
+    return _CLOOPS[key]
 
 
-def mk_c_filter(y, reuse=False):
-    c = c_loop()
+def mk_c_filter(y, reuse=False, flags=C_REF):
+    c = c_loop(flags)
     args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
     if reuse:
         out = (np.empty((len(y), 4)), np.empty((len(y), 4, 4)))
@@ -623,8 +636,8 @@ def mk_c_filter(y, reuse=False):
     return lambda: c.filter_prepared(args)
 
 
-def mk_c_smooth(y, reuse=False):
-    c = c_loop()
+def mk_c_smooth(y, reuse=False, flags=C_REF):
+    c = c_loop(flags)
     args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
     if reuse:
         out = c.smooth_out(len(y))
@@ -632,10 +645,22 @@ def mk_c_smooth(y, reuse=False):
     return lambda: c.smooth_prepared(args)
 
 
-def mk_c_loglik(y):
-    c = c_loop()
+def mk_c_loglik(y, flags=C_REF):
+    c = c_loop(flags)
     args = c.prepare(*cv_model()[:4], y, *cv_model()[4:])
     return lambda: c.loglik_prepared(args)
+
+
+def c_rows(mk, T, notes):
+    """Spec rows of the C loop for W1-W3: for each build (reference first, then
+    the 128-bit one) one row per (suffix, mk keyword arguments, note) in `notes`.
+    Group "c" is the reference only (plots' "C loop" bar); the other build is "c-alt"."""
+    rows = []
+    for flags, group in ((C_REF, "c"), (C_128, "c-alt")):
+        for suffix, kw, note in notes:
+            rows.append((c_name(flags) + suffix, lambda yy, kw=kw, flags=flags: mk(yy, flags=flags, **kw),
+                         T, note, group))
+    return rows
 
 
 # --------------------------------------------------------------------------
@@ -681,7 +706,7 @@ def check_smooth(contenders, y, log):
     refs = {}
     lag1_ref = None
     for k in contenders:
-        if not k.ok or k.name.startswith("C loop"):
+        if not k.ok or k.group == "c":  # the reference itself (other C builds are checked)
             continue
         T = k.steps
         if T not in refs:
@@ -729,7 +754,7 @@ def check_filter(contenders, y, log):
     res = {}
     refs = {}
     for k in contenders:
-        if not k.ok or k.name.startswith("C loop"):
+        if not k.ok or k.group == "c":  # the reference itself (other C builds are checked)
             continue
         T = k.steps
         if T not in refs:
@@ -759,7 +784,7 @@ def check_loglik(contenders, y, log):
             continue
         T = k.steps
         ref = c.loglik(F, H, Q, R, y[:T], x0, P0)
-        if k.name.startswith("C loop"):
+        if k.group == "c":
             log(f"  {k.name:<36s} loglik = {ref:.10f}   (T={T})")
             continue
         try:
@@ -816,6 +841,33 @@ def table(contenders, kfast_names, title, md=False):
     return "\n".join(out) + "\n"
 
 
+# SIMD extensions that matter for the kernels, in /proc/cpuinfo's spelling.
+SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", "avx512vl",
+              "avx512ifma", "avx512vbmi")
+
+
+def cpu_simd():
+    """The SIMD_FLAGS this CPU reports (first 'flags' line of /proc/cpuinfo), space-separated."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line.split(":", 1)[1].split() for line in f if line.startswith("flags")), [])
+    except OSError:
+        return "? (no /proc/cpuinfo)"
+    return " ".join(x for x in SIMD_FLAGS if x in flags) or "none of " + " ".join(SIMD_FLAGS)
+
+
+def kfast_kernel():
+    """Which kernel kfast dispatched to, from kfast._kfast.kernel_info() (older
+    builds lack it: then says so instead of failing)."""
+    try:
+        fn = getattr(importlib.import_module("kfast._kfast"), "kernel_info", None)
+        if fn is None:
+            return "n/a (no kfast._kfast.kernel_info)"
+        return ", ".join(f"{k}={v}" for k, v in dict(fn()).items())
+    except Exception as e:  # noqa: BLE001
+        return "n/a (" + _short_err(e) + ")"
+
+
 def machine_info():
     info = {}
     try:
@@ -834,6 +886,8 @@ def machine_info():
             os.path.getmtime(ext)).isoformat(timespec="minutes") + ")"
     except Exception:  # noqa: BLE001
         pass
+    info["simd"] = cpu_simd()
+    info["kernel"] = kfast_kernel()
     info["platform"] = platform.platform()
     try:
         info["load"] = "%.2f %.2f %.2f" % os.getloadavg()
@@ -901,16 +955,19 @@ def main(argv=None):
         f"{'(quick)' if quick else ''}")
     log(f"machine: {info['cpu']}, {info['cores']} cores | python {info['python']} | "
         f"numpy {info['numpy']} | kfast {info['kfast']} | gcc {info['gcc']} | load {info['load']}")
+    log(f"cpu SIMD: {info['simd']} | kfast kernel: {info['kernel']}")
     log("peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()))
     log(f"model CV (n=4, m=2, dt={DT}, q=1, R=I), float64, seed {SEED}; T={T:,}; "
         f"slow peers T={T_slow:,}; {rounds} interleaved rounds, medians")
     y = simulate(T)
 
-    try:
-        c_loop()
-        log(f"C loop: {_CLOOP.cc_cmd} benches/c/kf_cv.c (N=4, M=2 compile-time)")
-    except Unavailable as e:
-        log(f"C loop: {e}")
+    info["c_builds"] = []
+    for flags, role in ((C_REF, "the reference"), (C_128, "extra rows in W1-W3")):
+        try:
+            info["c_builds"].append(f"`{c_loop(flags).cc_cmd}` ({role})")
+            log(f"C loop ({role}): {c_loop(flags).cc_cmd} benches/c/kf_cv.c (N=4, M=2 compile-time)")
+        except Unavailable as e:
+            log(f"C loop ({role}, {' '.join(flags)}): {e}")
 
     if any(k in todo for k in ("W1", "W2", "W3")):
         # pre-compile the JAX functions so that failures show up here
@@ -945,9 +1002,9 @@ def main(argv=None):
              "outputs=(\"x_filt\", \"P_filt\"): the workload's outputs, like the C loop", "kfast"),
             ("kfast joseph, x_filt+P_filt", lambda yy: mk_kfast_filter(yy, "joseph", ("x_filt", "P_filt")), T,
              "outputs=(\"x_filt\", \"P_filt\")", "kfast"),
-            ("C loop", mk_c_filter, T, "fresh output arrays each call", "c"),
-            ("C loop, reused out", lambda yy: mk_c_filter(yy, reuse=True), T,
-             "output buffers preallocated (no page faults)", "c"),
+            *c_rows(mk_c_filter, T, [("", {}, "fresh output arrays each call"),
+                                     (", reused out", {"reuse": True},
+                                      "output buffers preallocated (no page faults)")]),
             ("statsmodels tuned", mk_sm_filter_tuned, T, "univariate, no symmetrisation, _filter(), conserve_memory; " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_filter_tuned(yy, False), T,
              ns_note, "peer"),
@@ -978,9 +1035,9 @@ def main(argv=None):
              "outputs=(\"x_smooth\", \"P_smooth\"): the workload's outputs, like the C loop", "kfast"),
             ("kfast joseph, x_smooth+P_smooth", lambda yy: mk_kfast_smooth(yy, "joseph", W2_OUT), T,
              "outputs=(\"x_smooth\", \"P_smooth\")", "kfast"),
-            ("C loop", mk_c_smooth, T, "fresh outputs + prior buffers each call", "c"),
-            ("C loop, reused out", lambda yy: mk_c_smooth(yy, reuse=True), T,
-             "output and prior buffers preallocated", "c"),
+            *c_rows(mk_c_smooth, T, [("", {}, "fresh outputs + prior buffers each call"),
+                                     (", reused out", {"reuse": True},
+                                      "output and prior buffers preallocated")]),
             ("statsmodels tuned", mk_sm_smooth_tuned, T,
              "univariate, no symmetrisation, _filter() + _smooth(STATE|STATE_COV); " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_smooth_tuned(yy, False), T,
@@ -1007,7 +1064,7 @@ def main(argv=None):
             ("kfast loglik", mk_kfast_loglik, T, "LinearGaussian.loglik() (default form, joseph)", "kfast"),
             ("kfast loglik standard", lambda yy: mk_kfast_loglik(yy, "standard"), T,
              "LinearGaussian.loglik(form=\"standard\")", "kfast"),
-            ("C loop", mk_c_loglik, T, "", "c"),
+            *c_rows(mk_c_loglik, T, [("", {}, "")]),
             ("statsmodels tuned", mk_sm_loglik_tuned, T, "univariate, no symmetrisation, loglike(conserve_memory=MEMORY_CONSERVE); " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_loglik_tuned(yy, False), T,
              ns_note, "peer"),
@@ -1051,7 +1108,7 @@ def main(argv=None):
         log("\n== W5: many series, kfast.filter_batch (CV model) ==")
         results["W5"] = more.run_w5(rounds, quick, log)
     if "W8" in todo:
-        log("\n== W8: scaling in n (random stable, m = n/2) ==")
+        log("\n== W8: scaling in n (random stable, m = n/2; then a grid n = 1..12, 16, 32, 64 x m = 1, 2, 3) ==")
         results["W8"] = ("md", more.run_w8(max(3, rounds // 2), quick, log))
     if "MEM" in todo:
         log("\n== MEM: peak RSS of a W1 run in a fresh interpreter ==")
@@ -1113,9 +1170,12 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
     lines = [BEGIN, ""]
     lines.append(f"Run: {_dt.date.today().isoformat()}{' (--quick)' if quick else ''}  ")
     lines.append(f"Machine: {info['cpu']}, {info['cores']} cores, {info['platform']}  ")
+    lines.append(f"CPU SIMD: {info['simd']}; kfast kernel: {info['kernel']}  ")
     lines.append(f"Load average (1/5/15 min) at start {info['load']}, at end {info['load_end']}  ")
     lines.append(f"Python {info['python']}, NumPy {info['numpy']}, kfast {info['kfast']}, gcc {info['gcc']}  ")
     lines.append("Peers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()) + "  ")
+    if info.get("c_builds"):
+        lines.append("C loop builds: " + "; ".join(info["c_builds"]) + "  ")
     lines.append(f"T = {T:,} (slow peers T = {T_slow:,}; streaming: kfast {T_sk:,}, filterpy {T_sp:,} "
                  f"steps per sample); {rounds} interleaved rounds; medians; "
                  "`X/this` < 1 means X is faster.")
@@ -1126,7 +1186,7 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
               "W4": "W4: filter, random stable model n = 20, m = 5 (x_filt, P_filt for every step)",
               "W5": "W5: many series, B = 10,000 CV series of T = 500 (ns per series-step; the T column is B × T)",
               "W7": "W7: streaming predict + update from Python",
-              "W8": "W8: scaling in n (x_filt, P_filt; random stable model, m = n/2)",
+              "W8": "W8: scaling in n (x_filt, P_filt; random stable model, m = n/2, and a grid for m = 1, 2, 3)",
               "MEM": "Memory: peak RSS of a W1 run"}
     for w in ("W1", "W2", "W3", "W4", "W5", "W7", "W8", "MEM"):
         if w not in results:
@@ -1140,9 +1200,14 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
                              "(dense standard-form update and prediction, no symmetry used), for every "
                              "contender and form alike. statsmodels: tuned options, tolerance=0.")
                 lines.append("")
-                lines.append(bench_more.w8_markdown(results[w][1]))
+                lines.append(bench_more.w8_markdown(results[w][1]["pow2"]))
                 lines.append("")
                 lines.append("![W8 scaling](benches/plots/w8_scaling.png)")
+                lines.append("")
+                lines.append("Dense grid, m = 1, 2, 3: kfast's default call (Joseph form, x_filt and P_filt), "
+                             "ns/step (median over interleaved samples of all sizes); T = steps per call.")
+                lines.append("")
+                lines.append(bench_more.w8_grid_markdown(results[w][1]["grid"]))
             else:
                 lines.append(bench_more.mem_markdown(results[w][1]))
             lines.append("")

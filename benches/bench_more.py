@@ -1,4 +1,5 @@
-"""W4 (n = 20 filter), W5 (many series), W8 (scaling in n), MEM (peak RSS) and the plots.
+"""W4 (n = 20 filter), W5 (many series), W8 (scaling in n, and a dense small-n grid), MEM
+(peak RSS) and the plots.
 
 Driven from bench_filter.py (``--only W4,W5,W8,MEM``; ``--write`` puts them in
 BENCHMARKS.md and draws benches/plots/*.png).  Uses bench_filter's timing
@@ -77,20 +78,9 @@ def mk_kfast(model, y, **kw):
     return lambda: m.filter(y, x0, P0, **kw)
 
 
-_CL = {}
-
-
-def cloop_for(n, m):
-    key = (n, m)
-    if key not in _CL:
-        from cloop import CLoop
-        try:
-            _CL[key] = CLoop.build(n, m)
-        except Exception as e:  # noqa: BLE001
-            _CL[key] = e
-    if isinstance(_CL[key], Exception):
-        raise Unavailable("C build failed: " + _short_err(_CL[key]))
-    return _CL[key]
+def cloop_for(n, m, flags=None):
+    """The C loop for (N, M) = (n, m); bench_filter's cache, so every (n, m, flags) builds once."""
+    return bf.c_loop(flags or bf.C_REF, n, m)
 
 
 def mk_c(model, y):
@@ -240,7 +230,7 @@ def check_vs_c(cs, model, y, log):
         return {}
     res, refs = {}, {}
     for k in cs:
-        if not k.ok or k.name.startswith("C loop"):
+        if not k.ok or k.group == "c":  # the reference itself
             continue
         T = k.steps
         if T not in refs:
@@ -292,7 +282,7 @@ def run_w4(rounds, quick, log):
         ("kfast steady_state", lambda yy: mk_kfast(model, yy, outputs=outs, steady_state=True), T,
          "steady_state=True: stationary gains from t=0 (differs from the exact filter early on by design)",
          "kfast"),
-        ("C loop", lambda yy: mk_c(model, yy), T, f"kf_cv.c with N={W4_N}, M={W4_M}, Cholesky path", "c"),
+        (bf.c_name(), lambda yy: mk_c(model, yy), T, f"kf_cv.c with N={W4_N}, M={W4_M}, Cholesky path", "c"),
         ("statsmodels tuned", lambda yy: mk_sm_tuned(model, yy), T,
          "univariate, no symmetrisation, _filter(), conserve_memory; " + sm_note, "peer"),
         ("statsmodels tuned, no steady", lambda yy: mk_sm_tuned(model, yy, False), T,
@@ -422,7 +412,7 @@ def run_w5(rounds, quick, log):
 
         return run
 
-    spec.append(("C loop, per series", mk_c_batch, B * T,
+    spec.append((bf.c_name() + ", per series", mk_c_batch, B * T,
                  "kf_cv_filter called once per series (ctypes), one core, own P per series, "
                  "outputs preallocated", "c"))
 
@@ -516,7 +506,26 @@ def w8_T(n, quick):
     return max(20, T // 4) if quick else T
 
 
+W8_C = bf.c_name()  # the reference C build's row label
+W8_COLS = ("kfast", "kfast standard", W8_C, "statsmodels tuned, no steady")
+
+# The dense grid: every small n (where fixed-size kernels and their dispatch
+# matter most) for m = 1, 2, 3, plus three larger n for the trend.
+W8_GRID_NS = tuple(range(1, 13)) + (16, 32, 64)
+W8_GRID_MS = (1, 2, 3)
+W8_MONO_MAX_N = 12   # the monotonicity check covers n <= this
+W8_MONO_DROP = 0.10  # flag n when ns/step falls more than this below n - 1
+
+
 def run_w8(rounds, quick, log):
+    """Powers of two with m = n/2 (the rows compared with earlier runs), then the dense grid."""
+    rows = run_w8_pow2(rounds, quick, log)
+    log("\n  -- W8 grid: kfast default call (joseph; x_filt, P_filt), random stable models --")
+    grid = run_w8_grid(rounds if quick else 2 * rounds, quick, log)
+    return {"pow2": rows, "grid": grid}
+
+
+def run_w8_pow2(rounds, quick, log):
     rows = []
     outs = ("x_filt", "P_filt")
     for n in W8_NS:
@@ -527,7 +536,7 @@ def run_w8(rounds, quick, log):
         spec = [
             ("kfast", lambda yy: mk_kfast(model, yy, outputs=outs), T, "default form (joseph)", "kfast"),
             ("kfast standard", lambda yy: mk_kfast(model, yy, outputs=outs, form="standard"), T, "", "kfast"),
-            ("C loop", lambda yy: mk_c(model, yy), T, "", "c"),
+            (W8_C, lambda yy: mk_c(model, yy), T, "", "c"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_tuned(model, yy, False), T, "", "peer"),
         ]
         cs = bf.build(spec, y, lambda s: log(f"  n={n}: {s.strip()}"))
@@ -545,11 +554,112 @@ def run_w8(rounds, quick, log):
         rows.append(row)
         log(f"  n={n:3d} m={m:2d} T={T:6,d}  " + "  ".join(
             f"{k}: {row[k]['ns']:,.0f} ns ({row[k]['gflops']:.2f} GF/s)" if "ns" in row[k] else f"{k}: {row[k]['error']}"
-            for k in ("kfast", "kfast standard", "C loop", "statsmodels tuned, no steady")))
+            for k in W8_COLS))
     return rows
 
 
-W8_COLS = ("kfast", "kfast standard", "C loop", "statsmodels tuned, no steady")
+def w8_grid_T(n, quick):
+    """Steps per call in the grid, from n alone (one T per column): 5 ms at an
+    assumed 30 ns + flop/4 ns per step (pessimistic: real calls are shorter),
+    between 200 and 20,000 steps (the data are simulated by a Python loop),
+    rounded to 2 digits; --quick: a quarter.  Calls stay well under the 40 ms a
+    round gives each contender, so every size gets many samples per round."""
+    est_ns = 30 + flops_per_step(n, 2) / 4
+    T = int(min(20_000, max(200, 5e6 / est_ns)))
+    T = int(float(f"{T:.2g}"))
+    return max(50, T // 4) if quick else T
+
+
+def run_w8_grid(rounds, quick, log):
+    """kfast's default call on every (n, m) of the grid, all sizes interleaved in
+    one round-robin, so load drifts hit every size alike (the monotonicity check
+    compares neighbours).  Returns {"T": {n: T}, "ns": {(m, n): ns/step},
+    "iqr": {(m, n): (q25, q75)}, "err": {(m, n): message}}."""
+    outs = ("x_filt", "P_filt")
+    keys = [(m, n) for m in W8_GRID_MS for n in W8_GRID_NS if n >= m]
+    cs = []
+    for m, n in keys:
+        T = w8_grid_T(n, quick)
+        model = random_model(n, m)
+        c = Contender(f"kfast n={n} m={m}", None, T, "default form (joseph)", "kfast")
+        try:
+            c.fn = mk_kfast(model, simulate_model(*model[:4], T), outputs=outs)
+        except Unavailable as e:
+            c.error = str(e)
+        except Exception as e:  # noqa: BLE001
+            c.error = "setup failed: " + _short_err(e)
+        if c.error:
+            log(f"    [{c.name}] {c.error}")
+        cs.append(c)
+    bf.run_interleaved(cs, rounds, target_s=0.01 if quick else 0.04, log=log)
+    grid = {"T": {n: w8_grid_T(n, quick) for n in W8_GRID_NS}, "ns": {}, "iqr": {}, "err": {}}
+    for key, c in zip(keys, cs):
+        if c.ok:
+            grid["ns"][key], grid["iqr"][key] = c.ns_per_step(), c.spread()
+        else:
+            grid["err"][key] = c.error or "no samples"
+    log(w8_grid_text(grid))
+    return grid
+
+
+def w8_drops(grid):
+    """(m, n, change) for every n <= W8_MONO_MAX_N whose ns/step is more than
+    W8_MONO_DROP below that at n - 1: a bigger problem should never be cheaper,
+    so a drop means size n - 1 takes a slower path than it should."""
+    ns = grid["ns"]
+    out = []
+    for m in W8_GRID_MS:
+        for n in range(m + 1, W8_MONO_MAX_N + 1):
+            a, b = ns.get((m, n - 1)), ns.get((m, n))
+            if a and b and b < (1 - W8_MONO_DROP) * a:
+                out.append((m, n, b / a - 1))
+    return out
+
+
+def w8_mono_line(grid):
+    drops = w8_drops(grid)
+    if not drops:
+        return f"monotone in n for n <= {W8_MONO_MAX_N}"
+    return (f"NOT monotone in n for n <= {W8_MONO_MAX_N} (ns/step more than {W8_MONO_DROP:.0%} below n-1): "
+            + "; ".join(f"m={m}: n={n} ({d:+.0%} vs n={n - 1})" for m, n, d in drops))
+
+
+def _grid_cells(grid):
+    """Header and rows (T first, then one per m) of the grid table, as strings."""
+    head = ["m \\ n"] + [str(n) for n in W8_GRID_NS]
+    rows = [["T"] + [f"{grid['T'][n]:,}" for n in W8_GRID_NS]]
+    for m in W8_GRID_MS:
+        cells = [str(m)]
+        for n in W8_GRID_NS:
+            if n < m:
+                cells.append("")
+            elif (m, n) in grid["ns"]:
+                cells.append(bf.fmt_ns(grid["ns"][(m, n)]))
+            else:
+                cells.append("err")
+        rows.append(cells)
+    return head, rows
+
+
+def w8_grid_text(grid):
+    head, rows = _grid_cells(grid)
+    w = [max(len(head[i]), *(len(r[i]) for r in rows)) for i in range(len(head))]
+    out = ["  ns/step (median), rows m, columns n:"]
+    out += ["  " + "  ".join(s.rjust(w[i]) for i, s in enumerate(r)) for r in [head] + rows]
+    out += [f"  {m=} {n=}: {e}" for (m, n), e in grid["err"].items()]
+    out.append("  " + w8_mono_line(grid))
+    return "\n".join(out)
+
+
+def w8_grid_markdown(grid):
+    head, rows = _grid_cells(grid)
+    out = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    out += ["", w8_mono_line(grid) + "."]
+    out += [f"- m = {m}, n = {n}: {e}" for (m, n), e in grid["err"].items()]
+    return "\n".join(out)
+
+
 
 
 def w8_markdown(rows):
@@ -677,9 +787,9 @@ def make_plots(results, log):
     os.makedirs(PLOTS, exist_ok=True)
     made = []
     if "W8" in results:
-        rows = results["W8"][1]
+        rows = results["W8"][1]["pow2"]
         fig, ax = plt.subplots(figsize=(6.4, 4.6))
-        styles = {"kfast": "o-", "kfast standard": "s--", "C loop": "^:", "statsmodels tuned, no steady": "d-"}
+        styles = {"kfast": "o-", "kfast standard": "s--", W8_C: "^:", "statsmodels tuned, no steady": "d-"}
         for c in W8_COLS:
             pts = [(r["n"], r[c]["ns"]) for r in rows if "ns" in r[c]]
             if pts:
@@ -700,7 +810,7 @@ def make_plots(results, log):
     # bar chart: W1-W5, kfast vs C loop vs best peer
     kname = {"W1": "kfast joseph", "W2": "kfast smooth joseph", "W3": "kfast loglik",
              "W4": "kfast exact", "W5": "kfast batch"}
-    labels, vals = [], {"kfast": [], "kfast fastest": [], "C loop": [], "best peer": []}
+    labels, vals = [], {"kfast": [], "kfast fastest": [], W8_C: [], "best peer": []}
     peer_names = []
     for w in ("W1", "W2", "W3", "W4", "W5"):
         if w not in results or results[w][0] == "md":
@@ -713,14 +823,14 @@ def make_plots(results, log):
         vals["kfast"].append(k.ns_per_step() if k else np.nan)
         kb = _best(cs, "kfast", exclude=("kfast steady_state",))
         vals["kfast fastest"].append(kb.ns_per_step() if kb else np.nan)
-        vals["C loop"].append(cl.ns_per_step() if cl else np.nan)
+        vals[W8_C].append(cl.ns_per_step() if cl else np.nan)  # group "c": the reference build
         vals["best peer"].append(pr.ns_per_step() if pr else np.nan)
         peer_names.append(pr.name if pr else "")
     if labels:
         fig, ax = plt.subplots(figsize=(7.5, 4.6))
         x = np.arange(len(labels))
         wd = 0.21
-        bars = (("kfast", "C0"), ("kfast fastest", "C9"), ("C loop", "C2"), ("best peer", "C1"))
+        bars = (("kfast", "C0"), ("kfast fastest", "C9"), (W8_C, "C2"), ("best peer", "C1"))
         for i, (lab, col) in enumerate(bars):
             b = ax.bar(x + (i - 1.5) * wd, vals[lab], wd, label=lab, color=col)
             if lab == "best peer":

@@ -2,13 +2,15 @@
 
     from cloop import CLoop
     c = CLoop.build()            # gcc -O3 -march=native -shared -fPIC into a temp dir
+    c128 = CLoop.build(flags=("-O3", "-march=native", "-mprefer-vector-width=128"))
     x_filt, P_filt, ll = c.filter(F, H, Q, R, y, x0, P0)
     ll = c.loglik(F, H, Q, R, y, x0, P0)
     x_s, P_s, ll = c.smooth(F, H, Q, R, y, x0, P0)     # RTS smoother (W2)
 
 `CLoop.build()` raises RuntimeError (with the compiler's message) if gcc is
 missing or the build fails; the benchmark catches that and reports the C
-column as unavailable.
+column as unavailable.  Every build goes into its own temp dir, so builds
+with different sizes or flags never share a .so (nor a dlopen handle).
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.join(HERE, "c", "kf_cv.c")
+# The optimisation flags of the reference C loop (issue #11: kfast is compared
+# with gcc -O3 -march=native).  Other flag sets are extra rows beside it.
+DEFAULT_FLAGS = ("-O3", "-march=native")
 
 _dp = ctypes.POINTER(ctypes.c_double)
 
@@ -37,9 +42,10 @@ def _c64(a) -> np.ndarray:
 
 
 class CLoop:
-    def __init__(self, lib: ctypes.CDLL, cc_cmd: str, tmpdir: str):
+    def __init__(self, lib: ctypes.CDLL, cc_cmd: str, tmpdir: str, flags=DEFAULT_FLAGS):
         self.lib = lib
         self.cc_cmd = cc_cmd
+        self.flags = tuple(flags)
         self._tmpdir = tmpdir
         self.n = lib.kf_cv_n()
         self.m = lib.kf_cv_m()
@@ -52,15 +58,15 @@ class CLoop:
         lib.kf_cv_smooth.restype = ctypes.c_double
 
     @classmethod
-    def build(cls, n: int = 4, m: int = 2, cc: str | None = None) -> "CLoop":
+    def build(cls, n: int = 4, m: int = 2, cc: str | None = None, flags=DEFAULT_FLAGS) -> "CLoop":
+        """Compile kf_cv.c with N=n, M=m and the optimisation `flags`."""
         cc = cc or os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
         if not cc:
             raise RuntimeError("no C compiler (gcc/cc) on PATH")
         tmpdir = tempfile.mkdtemp(prefix="kfast_bench_c_")
         atexit.register(shutil.rmtree, tmpdir, True)
         so = os.path.join(tmpdir, "libkf_cv.so")
-        cmd = [cc, "-O3", "-march=native", "-shared", "-fPIC",
-               f"-DN={n}", f"-DM={m}", SRC, "-o", so, "-lm"]
+        cmd = [cc, *flags, "-shared", "-fPIC", f"-DN={n}", f"-DM={m}", SRC, "-o", so, "-lm"]
         try:
             p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
         except Exception as e:  # noqa: BLE001
@@ -68,7 +74,8 @@ class CLoop:
         if p.returncode != 0:
             raise RuntimeError("C build failed:\n" + " ".join(cmd) + "\n" + p.stderr)
         lib = ctypes.CDLL(so)
-        return cls(lib, " ".join(os.path.basename(c) if c == cc else c for c in cmd[:5]), tmpdir)
+        shown = cmd[: len(flags) + 3]  # compiler, flags, -shared -fPIC
+        return cls(lib, " ".join(os.path.basename(c) if c == cc else c for c in shown), tmpdir, flags)
 
     def close(self):
         shutil.rmtree(self._tmpdir, ignore_errors=True)
