@@ -13,14 +13,21 @@
 
 use crate::core::dims::Dims;
 
-/// Products with at least this many multiply-adds go to faer's blocked, SIMD matrix product;
-/// smaller ones stay in the plain loops (which the compiler unrolls for fixed sizes). Measured
-/// on the W8 random models (m = n/2, Joseph form), µs per step at n = 8, 12, 16, 24, 32, 64:
-/// heap workspace, loops only 0.94, 3.7, 7.3, 22, 48, 334; faer from 8³ 0.74, 2.0, 2.8, 7.0,
-/// 20, 115; from 16³ 0.96, 3.7, 4.4, 14, 19, 114. Since the filter loop on local arrays
-/// (compile-time sizes up to n = 8, `filter/fixed.rs`), the loops win at n = 8 (0.34 µs,
-/// against 0.50 with faer from 8³), so faer starts just above 8³.
+/// Products of run-time sizes with at least this many multiply-adds and a dimension above 12 go
+/// to faer's blocked, SIMD matrix product; all others stay in the loops here. Measured on the
+/// W8 random models (Joseph form, x_filt and P_filt stored), ns per step with run-time sizes,
+/// m = 1: n = 9 loops 934, faer from 8³ 1133; n = 16 loops 3446, faer 2508 (2026-12-02).
 pub(crate) const FAER_MIN_FLOPS: usize = 8 * 8 * 8 + 1;
+
+/// Whether an `m × k` by `k × n` product goes to faer: never for compile-time sizes (n ≤ 12),
+/// and for run-time sizes only with a dimension above 12. So a problem within the compiled
+/// sizes computes the same bits whether it runs with compile-time or run-time sizes (faer
+/// sums in another order), which `filter_batch` relies on: its shared covariance recursion
+/// runs with run-time sizes, each series' mean with compile-time ones.
+#[inline(always)]
+fn use_faer<D: Dims>(m: usize, k: usize, n: usize) -> bool {
+    !D::FIXED && m * k * n >= FAER_MIN_FLOPS && m.max(k).max(n) > 12
+}
 
 fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {
     let c = faer::MatMut::from_row_major_slice_mut(c, a.nrows(), b.ncols());
@@ -30,7 +37,7 @@ fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {
 /// `c[m×n] = a[m×k] · b[k×n]`.
 #[inline(always)]
 pub(crate) fn mul<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
-    if !D::FIXED && m * k * n >= FAER_MIN_FLOPS {
+    if use_faer::<D>(m, k, n) {
         let (a, b) = (faer::MatRef::from_row_major_slice(a, m, k), faer::MatRef::from_row_major_slice(b, k, n));
         return faer_mul(c, a, b);
     }
@@ -119,7 +126,7 @@ const TRANSPOSED_MAX: usize = 256;
 /// `c[m×n] = a[m×k] · b[n×k]'`.
 #[inline(always)]
 pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
-    if !D::FIXED && m * k * n >= FAER_MIN_FLOPS {
+    if use_faer::<D>(m, k, n) {
         let a = faer::MatRef::from_row_major_slice(a, m, k);
         let b = faer::MatRef::from_row_major_slice(b, n, k).transpose();
         return faer_mul(c, a, b);
@@ -152,7 +159,7 @@ pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: 
 /// triangle is computed and mirrored (large sizes: the full product, then symmetrized).
 #[inline(always)]
 pub(crate) fn mul_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
-    if !D::FIXED && n * k * n >= FAER_MIN_FLOPS {
+    if use_faer::<D>(n, k, n) {
         mul::<D>(c, a, b, n, k, n);
         return symmetrize(c, n);
     }
@@ -177,7 +184,7 @@ pub(crate) fn mul_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k:
 /// triangle is computed and mirrored.
 #[inline(always)]
 pub(crate) fn mul_bt_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k: usize) {
-    if !D::FIXED && n * k * n >= FAER_MIN_FLOPS {
+    if use_faer::<D>(n, k, n) {
         mul_bt::<D>(c, a, b, n, k, n);
         return symmetrize(c, n);
     }

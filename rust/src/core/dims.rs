@@ -141,7 +141,8 @@ impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
     }
 }
 
-/// The sizes [`with_dims!`] compiles, in words.
+/// The sizes [`with_dims!`] compiles, in words (for `kfast._kfast.kernel_info()`).
+#[cfg(feature = "python")]
 pub(crate) const FIXED_SIZES: &str = "n <= 12 with m <= min(n, 4) (compile-time sizes; others run-time)";
 
 /// Evaluates `$body` with `$d` bound to compile-time sizes for n ≤ 12 and m ≤ min(n, 4), so
