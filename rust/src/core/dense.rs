@@ -118,11 +118,6 @@ fn row_times_t<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], k: usize
     c[..W].copy_from_slice(&acc);
 }
 
-/// The largest `b` (in numbers) that the run-time-size `a · b'` products copy transposed into
-/// a local array (16 × 16), so that their inner loops read rows (vector loads) instead of
-/// columns.
-const TRANSPOSED_MAX: usize = 256;
-
 /// `c[m×n] = a[m×k] · b[n×k]'`.
 #[inline(always)]
 pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize) {
@@ -138,12 +133,6 @@ pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: 
             }
         }
         return;
-    }
-    if n * k <= TRANSPOSED_MAX {
-        // b' into a local array, then the product with contiguous rows.
-        let mut bt = [0.0; TRANSPOSED_MAX];
-        transpose(&mut bt, b, n, k);
-        return mul::<D>(c, a, &bt[..n * k], m, k, n);
     }
     for i in 0..m {
         let ai = &a[i * k..(i + 1) * k];
@@ -198,11 +187,6 @@ pub(crate) fn mul_bt_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize,
             }
         }
         return;
-    }
-    if n * k <= TRANSPOSED_MAX {
-        let mut bt = [0.0; TRANSPOSED_MAX];
-        transpose(&mut bt, b, n, k);
-        return mul_sym::<D>(c, a, &bt[..n * k], n, k);
     }
     for i in 0..n {
         let ai = &a[i * k..(i + 1) * k];
