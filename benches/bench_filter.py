@@ -908,21 +908,25 @@ def machine_info():
 # --------------------------------------------------------------------------
 # Main
 # --------------------------------------------------------------------------
+def contender(name, make, steps, note, group, log):
+    """A Contender whose timed function is `make()`; a failure to make it is recorded as the
+    contender's error (and logged), never raised."""
+    c = Contender(name, None, steps, note, group)
+    try:
+        c.fn = make()
+    except Unavailable as e:
+        c.error = str(e)
+    except Exception as e:  # noqa: BLE001
+        c.error = "setup failed: " + _short_err(e)
+    if c.error:
+        log(f"    [{name}] {c.error}")
+    return c
+
+
 def build(spec, y_full, log):
     """spec: list of (name, factory, T, note, group)."""
-    out = []
-    for name, factory, T, note, group in spec:
-        c = Contender(name, None, T, note, group)
-        try:
-            c.fn = factory(y_full[:T])
-        except Unavailable as e:
-            c.error = str(e)
-        except Exception as e:  # noqa: BLE001
-            c.error = "setup failed: " + _short_err(e)
-        if c.error:
-            log(f"    [{name}] {c.error}")
-        out.append(c)
-    return out
+    return [contender(name, lambda f=factory, T=T: f(y_full[:T]), T, note, group, log)
+            for name, factory, T, note, group in spec]
 
 
 def main(argv=None):

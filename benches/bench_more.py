@@ -23,7 +23,7 @@ if _main is not None and os.path.basename(getattr(_main, "__file__", "") or "") 
 else:  # pragma: no cover - imported on its own
     import bench_filter as bf  # noqa: E402
 
-Contender, Unavailable, _import, _short_err = bf.Contender, bf.Unavailable, bf._import, bf._short_err
+Unavailable, _import, _short_err = bf.Unavailable, bf._import, bf._short_err
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -449,18 +449,8 @@ def run_w5(rounds, quick, log):
 
     spec.append(("dynamax vmap", mk_dxb, Bp * T, f"jax.jit(jax.vmap(lgssm_filter)), CPU, x64; B={Bp:,}", "peer"))
 
-    cs = []
-    for name, factory, steps, note, group in spec:
-        c = Contender(name, None, steps, note, group)
-        try:
-            c.fn = factory(None)
-        except Unavailable as e:
-            c.error = str(e)
-        except Exception as e:  # noqa: BLE001
-            c.error = "setup failed: " + _short_err(e)
-        if c.error:
-            log(f"    [{name}] {c.error}")
-        cs.append(c)
+    cs = [bf.contender(name, lambda f=factory: f(None), steps, note, group, log)
+          for name, factory, steps, note, group in spec]
     bf.run_interleaved(cs, rounds, log=log)
     log("")
     knames = ["kfast batch", "kfast batch threads=1"]
@@ -581,16 +571,8 @@ def run_w8_grid(rounds, quick, log):
     for m, n in keys:
         T = w8_grid_T(n, quick)
         model = random_model(n, m)
-        c = Contender(f"kfast n={n} m={m}", None, T, "default form (joseph)", "kfast")
-        try:
-            c.fn = mk_kfast(model, simulate_model(*model[:4], T), outputs=outs)
-        except Unavailable as e:
-            c.error = str(e)
-        except Exception as e:  # noqa: BLE001
-            c.error = "setup failed: " + _short_err(e)
-        if c.error:
-            log(f"    [{c.name}] {c.error}")
-        cs.append(c)
+        make = lambda model=model, T=T: mk_kfast(model, simulate_model(*model[:4], T), outputs=outs)  # noqa: E731
+        cs.append(bf.contender(f"kfast n={n} m={m}", make, T, "default form (joseph)", "kfast", log))
     bf.run_interleaved(cs, rounds, target_s=0.01 if quick else 0.04, log=log)
     grid = {"T": {n: w8_grid_T(n, quick) for n in W8_GRID_NS}, "ns": {}, "iqr": {}, "err": {}}
     for key, c in zip(keys, cs):
