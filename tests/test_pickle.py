@@ -241,6 +241,25 @@ def test_filter_and_its_model_pickle_together_once():
     assert_same(kalman_view(kf4), kalman_view(kf3))
 
 
+def test_state_without_the_running_sum_continues_from_the_total():
+    """A state pickled before the running log-likelihood sum was kept (only "loglik")."""
+    case, model = case_and_model("plain")
+    kf = kfast.KalmanFilter(model, case.x0, case.P0)
+    for y in case.y[:5]:
+        kf.step(y)
+    state = kf.__reduce__()[2]
+    assert state["loglik"] == kf.loglik
+    del state["loglik_sum"]
+    old = kfast.KalmanFilter(model, case.x0, case.P0)
+    old.__setstate__(state)
+    assert old.loglik == kf.loglik
+    for y in case.y[5:]:
+        kf.step(y)
+        old.step(y)
+    np.testing.assert_array_equal(old.x, kf.x)
+    assert old.loglik == pytest.approx(kf.loglik, rel=1e-13)
+
+
 def test_bad_state_is_refused():
     case, model = case_and_model("plain")
     kf = kfast.KalmanFilter(model, case.x0, case.P0)
@@ -250,6 +269,11 @@ def test_bad_state_is_refused():
     state["x_pred"] = np.array([1.0, np.nan, 0.0])
     with pytest.raises(kfast.KfastError, match="x_pred"):
         kf.__setstate__(state)
+    for parts in ([1.0, 0.5, 0.0, 0.0, 0.0], [1.5, 1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, np.inf, 0.0]):
+        state = kf.__reduce__()[2]
+        state["loglik_sum"] = parts
+        with pytest.raises(kfast.KfastError, match="loglik_sum"):
+            kf.__setstate__(state)
     fl = kfast.FixedLagSmoother(model, case.x0, case.P0, lag=1)
     state = fl.__reduce__()[2]
     state["window"] = [(np.zeros(3), np.eye(3), np.eye(3))] * 3

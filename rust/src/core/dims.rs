@@ -142,8 +142,10 @@ impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
 }
 
 /// The sizes [`with_dims!`] compiles, in words (for `kfast._kfast.kernel_info()`).
-#[cfg(feature = "python")]
+#[cfg(all(feature = "python", not(kfast_dev_sizes)))]
 pub(crate) const FIXED_SIZES: &str = "n <= 12 with m <= min(n, 4) (compile-time sizes; others run-time)";
+#[cfg(all(feature = "python", kfast_dev_sizes))]
+pub(crate) const FIXED_SIZES: &str = "(1, 1), (2, 1), (4, 2), (5, 2), (9, 2) only (a kfast_dev_sizes build)";
 
 /// Evaluates `$body` with `$d` bound to compile-time sizes for n ≤ 12 and m ≤ min(n, 4), so
 /// that the kernels are unrolled for them, and to the run-time sizes otherwise:
@@ -153,52 +155,91 @@ pub(crate) const FIXED_SIZES: &str = "n <= 12 with m <= min(n, 4) (compile-time 
 /// Why every pair up to 12 × 4: a step with run-time sizes costs 2.5–4× one with compile-time
 /// sizes (loop control and bounds checks on loops of 5–12 trips, sums that wait on each
 /// other), so any size left out is a cliff between its neighbours (issue 11 measured n = 5
-/// at 9× n = 4). Each pair costs ~6 s of release build time.
+/// at 9× n = 4). Each pair costs ~6 s of release build time; for quick experiments,
+/// `RUSTFLAGS="--cfg kfast_dev_sizes"` compiles only (1, 1), (2, 1), (4, 2), (5, 2) and (9, 2)
+/// (with a separate `CARGO_TARGET_DIR`, as the flag rebuilds every dependency).
 macro_rules! with_dims {
     ($n:expr, $m:expr, |$d:ident| $body:expr) => {{
         use $crate::core::dims::{Dyn, Fixed};
         match ($n, $m) {
             (1, 1) => with_dims!(@fixed 1, 1, $d, $body),
             (2, 1) => with_dims!(@fixed 2, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (2, 2) => with_dims!(@fixed 2, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (3, 1) => with_dims!(@fixed 3, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (3, 2) => with_dims!(@fixed 3, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (3, 3) => with_dims!(@fixed 3, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (4, 1) => with_dims!(@fixed 4, 1, $d, $body),
             (4, 2) => with_dims!(@fixed 4, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (4, 3) => with_dims!(@fixed 4, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (4, 4) => with_dims!(@fixed 4, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (5, 1) => with_dims!(@fixed 5, 1, $d, $body),
             (5, 2) => with_dims!(@fixed 5, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (5, 3) => with_dims!(@fixed 5, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (5, 4) => with_dims!(@fixed 5, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (6, 1) => with_dims!(@fixed 6, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (6, 2) => with_dims!(@fixed 6, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (6, 3) => with_dims!(@fixed 6, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (6, 4) => with_dims!(@fixed 6, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (7, 1) => with_dims!(@fixed 7, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (7, 2) => with_dims!(@fixed 7, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (7, 3) => with_dims!(@fixed 7, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (7, 4) => with_dims!(@fixed 7, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (8, 1) => with_dims!(@fixed 8, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (8, 2) => with_dims!(@fixed 8, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (8, 3) => with_dims!(@fixed 8, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (8, 4) => with_dims!(@fixed 8, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (9, 1) => with_dims!(@fixed 9, 1, $d, $body),
             (9, 2) => with_dims!(@fixed 9, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (9, 3) => with_dims!(@fixed 9, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (9, 4) => with_dims!(@fixed 9, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (10, 1) => with_dims!(@fixed 10, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (10, 2) => with_dims!(@fixed 10, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (10, 3) => with_dims!(@fixed 10, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (10, 4) => with_dims!(@fixed 10, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (11, 1) => with_dims!(@fixed 11, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (11, 2) => with_dims!(@fixed 11, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (11, 3) => with_dims!(@fixed 11, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (11, 4) => with_dims!(@fixed 11, 4, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (12, 1) => with_dims!(@fixed 12, 1, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (12, 2) => with_dims!(@fixed 12, 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (12, 3) => with_dims!(@fixed 12, 3, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
             (12, 4) => with_dims!(@fixed 12, 4, $d, $body),
             (n, m) => {
                 let $d = Dyn { n, m };

@@ -12,6 +12,7 @@ use par::*;
 
 use crate::core::alloc::check_f64_arrays;
 use crate::core::dims::{with_dims, Dims, Dyn};
+use crate::core::gaussian::{LogDet, LoglikSum};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::filter::{check_data, check_series, FilterOutputs, Run, UpdateForm, Workspace};
@@ -172,7 +173,7 @@ fn series_parts<'a>(
 struct SharedGains {
     pht: Vec<f64>,
     s_factor: Vec<f64>,
-    log_det: Vec<f64>,
+    log_det: Vec<LogDet>,
     p_filt: Vec<f64>,
 }
 
@@ -237,7 +238,7 @@ impl Run<'_> {
     /// The state recursion of one series with the shared gains; returns its log-likelihood.
     fn means_only<D: Dims>(&self, ws: &mut Workspace<D>, g: &SharedGains, x_out: &mut [f64]) -> f64 {
         let (n, m) = (self.model.n_states(), self.model.n_obs());
-        let mut total = 0.0;
+        let mut total = LoglikSum::default();
         for t in 0..self.y.steps() {
             let sys = self.model.at(t);
             let u_t = self.u.map(|u| u.row(t));
@@ -245,10 +246,10 @@ impl Run<'_> {
             // Never fails: the data are complete and the gains were computed already.
             let _ = ws.update(&sys, self.y.row(t), u_t, self.form, t);
             ws.predict(&sys, u_t);
-            total += ws.loglik_t();
+            ws.add_loglik(&mut total);
             x_out[t * n..(t + 1) * n].copy_from_slice(ws.x_filt());
         }
-        total
+        total.total()
     }
 }
 

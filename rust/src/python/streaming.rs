@@ -10,6 +10,7 @@ use pyo3::types::{PyDict, PyTuple, PyType};
 
 use super::model::PyLinearGaussian;
 use super::{as_float64, data, form_arg, index_arg, prior, slice, to_array, vector, KfastError};
+use crate::core::gaussian::LoglikSum;
 use crate::linear::filter::{self, KalmanFilter, UpdateForm};
 use crate::linear::model::LinearGaussian;
 use crate::linear::smoother::FixedLagSmoother;
@@ -114,7 +115,7 @@ struct StepData {
     u: Kept,
     h: Kept,
     r: Kept,
-    loglik_before: f64,
+    loglik_before: LoglikSum,
 }
 
 /// `kf.update_with(y, u, h, r)`, recording the data for pickling.
@@ -126,7 +127,7 @@ fn update_recorded(
     h: Option<&[f64]>,
     r: Option<&[f64]>,
 ) -> crate::Result<()> {
-    let before = kf.loglik();
+    let before = kf.loglik_sum();
     kf.update_with(y, u, h, r)?;
     last.y.set(Some(y));
     last.u.set(u);
@@ -173,8 +174,11 @@ fn filter_state<'py>(py: Python<'py>, kf: &KalmanFilter, last: &StepData) -> PyR
     state.set_item("t", kf.t())?;
     state.set_item("x_pred", to_array(py, x_pred, &[n])?)?;
     state.set_item("P_pred", to_array(py, p_pred, &[n, n])?)?;
+    let loglik_before = if kf.is_updated() { last.loglik_before } else { kf.loglik_sum() };
+    // The total, and the running sum it is taken from (which continues bit for bit).
+    state.set_item("loglik", loglik_before.total())?;
+    state.set_item("loglik_sum", loglik_before.parts().to_vec())?;
     if kf.is_updated() {
-        state.set_item("loglik", last.loglik_before)?;
         let m = kf.model().n_obs();
         let update = PyDict::new(py);
         update.set_item("y", to_array(py, &last.y.values, &[m])?)?;
@@ -185,7 +189,6 @@ fn filter_state<'py>(py: Python<'py>, kf: &KalmanFilter, last: &StepData) -> PyR
         }
         state.set_item("update", update)?;
     } else {
-        state.set_item("loglik", kf.loglik())?;
         state.set_item("update", py.None())?;
     }
     Ok(state)
@@ -211,7 +214,12 @@ fn resume_filter(
     state: &Bound<'_, PyDict>,
 ) -> PyResult<(KalmanFilter, StepData)> {
     let t: usize = item(state, "t")?.extract()?;
-    let loglik: f64 = item(state, "loglik")?.extract()?;
+    let loglik = match state.get_item("loglik_sum")? {
+        Some(parts) => LoglikSum::from_parts(parts.extract()?)
+            .ok_or_else(|| KfastError::new_err("state: \"loglik_sum\" is not a log-likelihood sum"))?,
+        // A state without it (pickled by kfast before 2026-12-02): continue from the total.
+        None => LoglikSum::carrying(item(state, "loglik")?.extract()?),
+    };
     let x_pred = vector(py, "x_pred", &item(state, "x_pred")?)?;
     let p_pred = flat(py, "P_pred", &item(state, "P_pred")?)?;
     let p_pred = data("P_pred", &p_pred, 2)?;
@@ -632,7 +640,7 @@ impl PyFixedLagSmoother {
 impl PyFixedLagSmoother {
     /// `inner.update(y, u)`, recording the data for pickling.
     fn update_recorded(&mut self, y: &[f64], u: Option<&[f64]>) -> crate::Result<()> {
-        let before = self.inner.filter().loglik();
+        let before = self.inner.filter().loglik_sum();
         self.inner.update(y, u)?;
         self.last.y.set(Some(y));
         self.last.u.set(u);

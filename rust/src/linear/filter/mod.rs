@@ -16,6 +16,7 @@ pub(crate) use step::Workspace;
 pub use streaming::KalmanFilter;
 
 use crate::core::dims::{with_dims, Buf, Dims};
+use crate::core::gaussian::LoglikSum;
 use crate::core::isa::run_best;
 pub use crate::core::Series;
 use crate::error::Result;
@@ -227,7 +228,7 @@ impl Run<'_> {
         features: Features,
     ) -> Result<f64> {
         let mut copy: Option<Box<Workspace<D>>> = None;
-        let mut total = 0.0;
+        let mut total = LoglikSum::default();
         for t in 0..self.y.steps() {
             let sys = at(t);
             let (y, u_t) = (self.y.row(t), self.u.map(|u| u.row(t)));
@@ -245,7 +246,7 @@ impl Run<'_> {
                 ws.update(&sys, y, u_t, self.form, t)?;
                 ws.predict(&sys, u_t);
             }
-            total += ws.loglik_t();
+            ws.add_loglik(&mut total);
             out.store_step(t, ws);
         }
         // Each update checks its own result; a state that overflows during trailing missing
@@ -253,6 +254,6 @@ impl Run<'_> {
         if ws.x_pred().iter().any(|v| !v.is_finite()) {
             return Err(overflowed(self.y.steps().saturating_sub(1)));
         }
-        Ok(total)
+        Ok(total.total())
     }
 }

@@ -23,7 +23,7 @@
 
 use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_vec, mul_vec_add, symmetrize, transpose};
 use crate::core::dims::{Buf, Dims};
-use crate::core::gaussian::{GaussianUpdate, MeasurementPrediction};
+use crate::core::gaussian::{GaussianUpdate, LogDet, LoglikSum, MeasurementPrediction};
 use crate::error::{Error, Result};
 use crate::linear::model::StepView;
 
@@ -293,6 +293,12 @@ impl<D: Dims> Workspace<D> {
         self.update.loglik_t()
     }
 
+    /// Adds the log-likelihood term of the last update to `sum`.
+    #[inline(always)]
+    pub fn add_loglik(&self, sum: &mut LoglikSum) {
+        sum.add(&self.update);
+    }
+
     /// What the last update used; `h` is the step's full H.
     pub fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a> {
         let (n, mo) = (self.d.n(), self.m_obs);
@@ -306,14 +312,14 @@ impl<D: Dims> Workspace<D> {
 
     /// The data-independent part of the last fully observed update: P H' (n × m), the
     /// L D L' factor of S (m × m) and ln det S.
-    pub fn gains(&self) -> (&[f64], &[f64], f64) {
+    pub fn gains(&self) -> (&[f64], &[f64], LogDet) {
         (self.pht.get(), self.update.s_factor(self.d.m()), self.update.log_det())
     }
 
     /// Loads gains recorded by [`gains`](Self::gains) and freezes the covariance recursion:
     /// the next fully observed update and time update then move only the state, with exactly
     /// the operations of the full recursion.
-    pub fn load_gains(&mut self, pht: &[f64], s_factor: &[f64], log_det: f64) {
+    pub fn load_gains(&mut self, pht: &[f64], s_factor: &[f64], log_det: LogDet) {
         self.pht.get_mut().copy_from_slice(pht);
         self.update.load_factor(s_factor, log_det);
         self.m_obs = self.d.m();
@@ -405,7 +411,7 @@ impl<D: Dims> Workspace<D> {
     /// data near 1e308).
     #[inline(always)]
     fn check_finite(&self, t: usize) -> Result<()> {
-        if self.update.loglik_t().is_nan() {
+        if self.update.overflowed() {
             return Err(overflowed(t));
         }
         Ok(())
@@ -437,7 +443,7 @@ impl<D: Dims> Workspace<D> {
         if self.m_obs == 0 {
             self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
             self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
-            self.update.set_loglik_t(0.0);
+            self.update.skip();
             return Ok(());
         }
         self.update_partial(sys, form, t)?;
@@ -530,7 +536,7 @@ impl<D: Dims> Workspace<D> {
         self.m_obs = 0;
         self.innov.get_mut().fill(f64::NAN);
         self.gain.get_mut().fill(0.0);
-        self.update.set_loglik_t(0.0);
+        self.update.skip();
         self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
         self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
     }

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
 use crate::core::dims::Dyn;
+use crate::core::gaussian::LoglikSum;
 use crate::core::validate::{
     check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
 };
@@ -26,7 +27,7 @@ pub struct KalmanFilter<M: Borrow<LinearGaussian> = Arc<LinearGaussian>> {
     form: UpdateForm,
     t: usize,
     updated: bool,
-    loglik: f64,
+    loglik: LoglikSum,
 }
 
 impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
@@ -37,7 +38,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         check_prior(lg.n_states(), x0, p0)?;
         let d = Dyn { n: lg.n_states(), m: lg.n_obs() };
         let ws = Workspace::new(d, lg.n_inputs(), x0, p0);
-        Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: 0.0 })
+        Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: LoglikSum::default() })
     }
 
     /// Measurement update with `y` (length m, NaN = missing); `u` is needed when the model has D.
@@ -79,7 +80,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
             sys.r = &r_sym;
         }
         self.ws.update(&sys, y, u, self.form, t)?;
-        self.loglik += self.ws.loglik_t();
+        self.ws.add_loglik(&mut self.loglik);
         self.updated = true;
         Ok(())
     }
@@ -153,6 +154,12 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// Sum of the log-likelihood terms of the updates so far.
     pub fn loglik(&self) -> f64 {
+        self.loglik.total()
+    }
+
+    /// The running sum behind [`loglik`](Self::loglik) (for pickling).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
+    pub(crate) fn loglik_sum(&self) -> LoglikSum {
         self.loglik
     }
 
@@ -195,7 +202,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         p_pred: &[f64],
         form: UpdateForm,
         t: usize,
-        loglik: f64,
+        loglik: LoglikSum,
     ) -> Result<Self> {
         let lg = model.borrow();
         let (n, m, k, steps) = (lg.n_states(), lg.n_obs(), lg.n_inputs(), lg.steps());
