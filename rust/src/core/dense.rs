@@ -42,10 +42,18 @@ pub(crate) fn mul<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usi
         return faer_mul(c, a, b);
     }
     if D::UNROLL {
+        if k == 0 {
+            return c[..m * n].fill(0.0);
+        }
         for i in 0..m {
             let ci = &mut c[i * n..(i + 1) * n];
-            ci.fill(0.0);
-            for l in 0..k {
+            // From the first term, not from 0.0: 0.0 + x cannot be folded (it turns −0.0
+            // into 0.0), and that add sits on the step's latency chain (S = H P H', F P).
+            let ai0 = a[i * k];
+            for (cij, b0j) in ci.iter_mut().zip(&b[..n]) {
+                *cij = ai0 * b0j;
+            }
+            for l in 1..k {
                 let ail = a[i * k + l];
                 for (cij, blj) in ci.iter_mut().zip(&b[l * n..(l + 1) * n]) {
                     *cij += ail * blj;

@@ -21,7 +21,7 @@
 //! array the compiler keeps in registers, with run-time sizes a heap vector. The arithmetic is
 //! the same, so both give the same bits (which `filter_batch`'s shared recursion relies on).
 
-use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_vec, mul_vec_add, symmetrize, transpose};
+use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, symmetrize, transpose};
 use crate::core::dims::{Buf, Dims};
 use crate::core::gaussian::{GaussianUpdate, LogDet, LoglikSum, MeasurementPrediction};
 use crate::error::{Error, Result};
@@ -472,12 +472,13 @@ impl<D: Dims> Workspace<D> {
         let (n, m) = (self.d.n(), self.d.m());
         let pht = self.pht.get_mut();
         mul_bt::<D>(pht, self.p_pred.get(), sys.h, n, n, m);
+        // H (P H') computed as one triangle and mirrored, plus the symmetric R: S is exactly
+        // symmetric without a symmetrization on the step's latency chain.
         let s = self.s_full.get_mut();
-        mul::<D>(s, sys.h, pht, m, n, m);
+        mul_sym::<D>(s, sys.h, pht, m, n);
         for (s, r) in s.iter_mut().zip(&sys.r[..m * m]) {
             *s += r;
         }
-        symmetrize(s, m);
     }
 
     /// The update with the observed components only (some, not all, are missing).
@@ -594,7 +595,12 @@ impl<D: Dims> Workspace<D> {
                 }
             }
         }
-        symmetrize(self.p_pred.get_mut(), n);
+        // F P(t|t) F' is mirrored and Q exactly symmetric (the model stores (Q + Q')/2), so
+        // P(t+1|t) is exactly symmetric unless the N terms were subtracted (their two
+        // products round differently).
+        if cross_cov.is_some() {
+            symmetrize(self.p_pred.get_mut(), n);
+        }
         if let (Some(tol), true, true) = (self.converge_tol, mo == m, features.freezing) {
             let (p_pred, p_prev) = (self.p_pred.get(), self.p_prev.get());
             let change = p_pred.iter().zip(p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
