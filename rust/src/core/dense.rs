@@ -235,7 +235,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
     let chunks = k / 4;
-    let mut acc = [0.0; 4];
+    // −0.0, the identity of addition: the compiler drops the first add (0.0 + x it cannot).
+    let mut acc = [-0.0; 4];
     for c in 0..chunks {
         for l in 0..4 {
             acc[l] += a[4 * c + l] * b[4 * c + l];
@@ -363,7 +364,7 @@ pub(crate) fn ldl(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
             d -= f[j * n + l] * (f[j * n + l] * f[l * n + l]);
         }
         // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
-        if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d.is_finite()) {
+        if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d <= f64::MAX) {
             return Err(j);
         }
         f[j * n + j] = d;
@@ -395,7 +396,7 @@ pub(crate) fn ldl_solve(f: &[f64], b: &mut [f64], n: usize, r: usize) {
 #[inline(always)]
 pub(crate) fn ldl_solve_quad(f: &[f64], b: &mut [f64], n: usize) -> f64 {
     solve_unit_lower(f, b, n, 1);
-    let mut quad = 0.0;
+    let mut quad = -0.0;
     for (i, bi) in b.iter_mut().enumerate() {
         let w = *bi;
         *bi = w * (1.0 / f[i * n + i]);

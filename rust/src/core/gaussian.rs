@@ -67,7 +67,8 @@ impl LogDet {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct LoglikSum {
     observed: usize,
-    /// `Π det S_t = det_mantissa · 2^det_exponent · exp(log_rest)`, `det_mantissa` in [1, 2).
+    /// `Π det S_t = det_mantissa · 2^det_exponent · exp(log_rest)`, `det_mantissa` in
+    /// [2⁻⁵⁰⁰, 2⁵⁰⁰] (split into [1, 2) and the exponent when it leaves that range).
     det_mantissa: f64,
     det_exponent: i64,
     log_rest: f64,
@@ -87,8 +88,23 @@ impl LoglikSum {
         self.observed += update.observed;
         self.quad += update.quad;
         self.log_rest += update.log_det.log_rest;
+        // The running product is renormalized only when it leaves [2⁻⁵⁰⁰, 2⁵⁰⁰]: a power of
+        // two is exact, so the product's bits are those of renormalizing at every step, for
+        // one multiply and a compare instead of three exponent splits.
+        let product = self.det_mantissa * update.log_det.det;
+        if (RENORMALIZE_BELOW..=RENORMALIZE_ABOVE).contains(&product) {
+            self.det_mantissa = product;
+        } else {
+            self.renormalize(update.log_det.det);
+        }
+    }
+
+    /// `det_mantissa · det` as a mantissa in [1, 2) and a binary exponent (out of line: rare).
+    #[cold]
+    #[inline(never)]
+    fn renormalize(&mut self, det: f64) {
         let (m1, e1) = split_exponent(self.det_mantissa);
-        let (m2, e2) = split_exponent(update.log_det.det);
+        let (m2, e2) = split_exponent(det);
         let (m, e) = split_exponent(m1 * m2);
         self.det_mantissa = m;
         self.det_exponent += e1 + e2 + e;
@@ -101,10 +117,12 @@ impl LoglikSum {
         LoglikSum { quad: -2.0 * loglik, ..LoglikSum::default() }
     }
 
-    /// The state of the sum as five numbers (for pickling a streaming filter).
+    /// The state of the sum as five numbers (for pickling a streaming filter), the product
+    /// of the determinants with its mantissa in [1, 2).
     #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
     pub fn parts(&self) -> [f64; 5] {
-        [self.observed as f64, self.det_mantissa, self.det_exponent as f64, self.log_rest, self.quad]
+        let (m, e) = split_exponent(self.det_mantissa);
+        [self.observed as f64, m, (self.det_exponent + e) as f64, self.log_rest, self.quad]
     }
 
     /// The sum of [`parts`](Self::parts); `None` when they cannot be such a state.
@@ -129,10 +147,17 @@ impl LoglikSum {
 
     /// The total.
     pub fn total(&self) -> f64 {
-        let log_det = self.det_mantissa.ln() + self.det_exponent as f64 * std::f64::consts::LN_2 + self.log_rest;
+        let (m, e) = split_exponent(self.det_mantissa);
+        let log_det = m.ln() + (self.det_exponent + e) as f64 * std::f64::consts::LN_2 + self.log_rest;
         -0.5 * (self.observed as f64 * LN_2PI + log_det + self.quad)
     }
 }
+
+/// The range in which [`LoglikSum`] keeps its running product without splitting it: a
+/// product of it and a normal determinant neither over- nor underflows unnoticed (it lands
+/// outside, and is then recomputed from the split factors).
+const RENORMALIZE_BELOW: f64 = 3.054936363499605e-151; // 2⁻⁵⁰⁰
+const RENORMALIZE_ABOVE: f64 = 3.273390607896142e150; // 2⁵⁰⁰
 
 /// A positive normal `x` as `(m, e)` with `x = m · 2^e`, `m` in [1, 2), by its bits.
 #[inline(always)]

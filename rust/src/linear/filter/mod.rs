@@ -15,6 +15,8 @@ pub use step::UpdateForm;
 pub(crate) use step::Workspace;
 pub use streaming::KalmanFilter;
 
+use std::borrow::Borrow;
+
 use crate::core::dims::{with_dims, Buf, Dims};
 use crate::core::gaussian::LoglikSum;
 use crate::core::isa::run_best;
@@ -189,7 +191,9 @@ impl Run<'_> {
         let first = self.model.at(0);
         let local = LocalMatrices::new(d, &first);
         let sys = local.view(&first);
-        let total = self.steps(&mut ws, out, |_| sys, Features::PLAIN)?;
+        // A reference, not a copy per step: the out-of-line missing-value step takes the
+        // step's matrices by address, so a per-step copy is written to the stack every step.
+        let total = self.steps(&mut ws, out, |_| &sys, Features::PLAIN)?;
         out.store_next(ws.x_pred(), ws.p_pred());
         Ok(total)
     }
@@ -220,31 +224,32 @@ impl Run<'_> {
     /// missing value (a run-time number of observed components) runs out of line on a heap
     /// copy of the workspace. Both run the same code, so the results are the same bits.
     #[inline(always)]
-    fn steps<'m, D: Dims>(
+    fn steps<'m, D: Dims, S: Borrow<StepView<'m>>>(
         &self,
         ws: &mut Workspace<D>,
         out: &mut FilterOutputs<'_>,
-        at: impl Fn(usize) -> StepView<'m>,
+        at: impl Fn(usize) -> S,
         features: Features,
     ) -> Result<f64> {
         let mut copy: Option<Box<Workspace<D>>> = None;
         let mut total = LoglikSum::default();
         for t in 0..self.y.steps() {
             let sys = at(t);
+            let sys = sys.borrow();
             let (y, u_t) = (self.y.row(t), self.u.map(|u| u.row(t)));
             out.store_prior(t, ws.x_pred(), ws.p_pred());
             if all_observed(y) {
-                ws.update_observed(&sys, y, u_t, self.form, t, features)?;
-                ws.predict_observed(&sys, u_t, features);
+                ws.update_observed(sys, y, u_t, self.form, t, features)?;
+                ws.predict_observed(sys, u_t, features);
             } else if D::FIXED {
                 let d = ws.dims();
                 let copy = copy.get_or_insert_with(|| Box::new(Workspace::new(d, 0, self.x0, self.p0)));
                 copy.copy_prior_from(ws);
-                copy.step_out_of_line(&sys, y, u_t, self.form, t)?;
+                copy.step_out_of_line(sys, y, u_t, self.form, t)?;
                 ws.copy_from(copy);
             } else {
-                ws.update(&sys, y, u_t, self.form, t)?;
-                ws.predict(&sys, u_t);
+                ws.update(sys, y, u_t, self.form, t)?;
+                ws.predict(sys, u_t);
             }
             ws.add_loglik(&mut total);
             out.store_step(t, ws);
