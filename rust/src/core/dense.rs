@@ -6,10 +6,11 @@
 //!
 //! The matrix products take the [`Dims`] they serve as a type: with compile-time sizes up to
 //! n = 8 a plain loop over rows, which the compiler unrolls whole, is fastest; above that and
-//! with run-time sizes the blocked form keeps a few results in registers (`blocked_product`). Both sum every entry in the same order, from the first
-//! term, so they give the same numbers (the sign of an exact zero aside: the plain dot products
-//! start from −0.0, which the compiler can drop, while the blocked sums start from 0.0, which
-//! vectorizes better — measured both ways, ~10% of a step either side).
+//! with run-time sizes the blocked form keeps a few results in registers (`blocked_product`).
+//! Both sum every entry in the same order, from the first term, so they give the same numbers
+//! (the sign of an exact zero aside: the plain products start from their first term or from
+//! −0.0, which the compiler can drop, while the blocked sums start from 0.0, which vectorizes
+//! better — measured both ways, ~10% of a step either side).
 
 use crate::core::dims::Dims;
 

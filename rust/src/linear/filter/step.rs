@@ -595,12 +595,6 @@ impl<D: Dims> Workspace<D> {
                 }
             }
         }
-        // F P(t|t) F' is mirrored and Q exactly symmetric (the model stores (Q + Q')/2), so
-        // P(t+1|t) is exactly symmetric unless the N terms were subtracted (their two
-        // products round differently).
-        if cross_cov.is_some() {
-            symmetrize(self.p_pred.get_mut(), n);
-        }
         if let (Some(tol), true, true) = (self.converge_tol, mo == m, features.freezing) {
             let (p_pred, p_prev) = (self.p_pred.get(), self.p_prev.get());
             let change = p_pred.iter().zip(p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
@@ -639,6 +633,9 @@ impl<D: Dims> Workspace<D> {
                     p_pred[r * n + c] -= acc;
                 }
             }
+            // The two products of an entry and of its mirror round differently; F P F' + Q
+            // alone is exactly symmetric already (mirrored, and the model's Q is symmetric).
+            symmetrize(p_pred, n);
             for r in 0..n {
                 for a in 0..mo {
                     fk[r * mo + a] += g_t[a * n + r];
