@@ -204,6 +204,25 @@ def mk_kfast_filter(y, form, outputs=None):
     return lambda: m.filter(y, x0, P0, form=form, outputs=outputs)
 
 
+def deterministic(mk):
+    """`mk`'s call in kfast's deterministic mode (kfast.set_deterministic: no fused
+    multiply-adds, the same bits on every CPU); the default rows run the fastest loops."""
+    def make(yy, *args, **kwargs):
+        call = mk(yy, *args, **kwargs)
+        kf = kfast_module()
+        if not hasattr(kf, "set_deterministic"):
+            raise Unavailable("kfast has no set_deterministic (older build)")
+
+        def run():
+            previous = kf.set_deterministic(True)
+            try:
+                return call()
+            finally:
+                kf.set_deterministic(previous)
+        return run
+    return make
+
+
 def mk_kfast_smooth(y, form, outputs=None):
     kf = kfast_module()
     F, H, Q, R, x0, P0 = cv_model()
@@ -1006,6 +1025,12 @@ def main(argv=None):
              "outputs=(\"x_filt\", \"P_filt\"): the workload's outputs, like the C loop", "kfast"),
             ("kfast joseph, x_filt+P_filt", lambda yy: mk_kfast_filter(yy, "joseph", ("x_filt", "P_filt")), T,
              "outputs=(\"x_filt\", \"P_filt\")", "kfast"),
+            ("kfast standard, x_filt+P_filt, deterministic",
+             lambda yy: deterministic(mk_kfast_filter)(yy, "standard", ("x_filt", "P_filt")), T,
+             "kfast.set_deterministic(True): no fused multiply-adds", "kfast"),
+            ("kfast joseph, x_filt+P_filt, deterministic",
+             lambda yy: deterministic(mk_kfast_filter)(yy, "joseph", ("x_filt", "P_filt")), T,
+             "kfast.set_deterministic(True)", "kfast"),
             *c_rows(mk_c_filter, T, [("", {}, "fresh output arrays each call"),
                                      (", reused out", {"reuse": True},
                                       "output buffers preallocated (no page faults)")]),
@@ -1039,6 +1064,9 @@ def main(argv=None):
              "outputs=(\"x_smooth\", \"P_smooth\"): the workload's outputs, like the C loop", "kfast"),
             ("kfast joseph, x_smooth+P_smooth", lambda yy: mk_kfast_smooth(yy, "joseph", W2_OUT), T,
              "outputs=(\"x_smooth\", \"P_smooth\")", "kfast"),
+            ("kfast standard, x_smooth+P_smooth, deterministic",
+             lambda yy: deterministic(mk_kfast_smooth)(yy, "standard", W2_OUT), T,
+             "kfast.set_deterministic(True): no fused multiply-adds", "kfast"),
             *c_rows(mk_c_smooth, T, [("", {}, "fresh outputs + prior buffers each call"),
                                      (", reused out", {"reuse": True},
                                       "output and prior buffers preallocated")]),
@@ -1068,6 +1096,10 @@ def main(argv=None):
             ("kfast loglik", mk_kfast_loglik, T, "LinearGaussian.loglik() (default form, joseph)", "kfast"),
             ("kfast loglik standard", lambda yy: mk_kfast_loglik(yy, "standard"), T,
              "LinearGaussian.loglik(form=\"standard\")", "kfast"),
+            ("kfast loglik, deterministic", lambda yy: deterministic(mk_kfast_loglik)(yy), T,
+             "kfast.set_deterministic(True): no fused multiply-adds", "kfast"),
+            ("kfast loglik standard, deterministic", lambda yy: deterministic(mk_kfast_loglik)(yy, "standard"), T,
+             "kfast.set_deterministic(True)", "kfast"),
             *c_rows(mk_c_loglik, T, [("", {}, "")]),
             ("statsmodels tuned", mk_sm_loglik_tuned, T, "univariate, no symmetrisation, loglike(conserve_memory=MEMORY_CONSERVE); " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_loglik_tuned(yy, False), T,

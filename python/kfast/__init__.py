@@ -31,6 +31,7 @@ from kfast.linear.model import (
     SmootherResult,
 )
 
+from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -74,4 +75,7 @@ __all__ = [
     "InnovationsForm",
     "KalmanBucy",
     "stationary_cov_continuous",
+    "set_deterministic",
+    "deterministic",
+    "kernel_info",
 ]

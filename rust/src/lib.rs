@@ -59,7 +59,7 @@ mod python;
 pub mod riccati;
 pub mod sampling;
 
-pub use self::core::isa::instruction_set;
+pub use self::core::isa::{deterministic, instruction_set, set_deterministic};
 pub use self::core::Series;
 pub use error::{Error, Result};
 pub use linear::batch::{filter_batch, Batch, BatchOutputs};

@@ -11,8 +11,31 @@
 //! (the sign of an exact zero aside: the plain products start from their first term or from
 //! −0.0, which the compiler can drop, while the blocked sums start from 0.0, which vectorizes
 //! better — measured both ways, ~10% of a step either side).
+//!
+//! With [`Fused`](crate::core::dims::Fused) sizes every multiply-add of the products, of the
+//! L D L' factorization and of its solves is one `mul_add` (rounded once), in the same order;
+//! those kernels must be inlined into a loop compiled with FMA (`core::isa`), or `mul_add`
+//! becomes a call into the runtime library. Products of run-time sizes above 12 go to faer
+//! only with fused sizes: faer picks its kernels (and their rounding) per CPU, which
+//! deterministic mode rules out.
 
-use crate::core::dims::Dims;
+use crate::core::dims::{Dims, Dyn};
+
+/// `acc + a · b`, rounded once for [`Fused`](crate::core::dims::Fused) sizes.
+#[inline(always)]
+fn madd<D: Dims>(acc: f64, a: f64, b: f64) -> f64 {
+    if D::FUSED {
+        a.mul_add(b, acc)
+    } else {
+        acc + a * b
+    }
+}
+
+/// `acc − a · b`, rounded once for [`Fused`](crate::core::dims::Fused) sizes.
+#[inline(always)]
+fn msub<D: Dims>(acc: f64, a: f64, b: f64) -> f64 {
+    madd::<D>(acc, -a, b)
+}
 
 /// Products of run-time sizes with at least this many multiply-adds and a dimension above 12 go
 /// to faer's blocked, SIMD matrix product; all others stay in the loops here. Measured on the
@@ -20,14 +43,15 @@ use crate::core::dims::Dims;
 /// m = 1: n = 9 loops 934, faer from 8³ 1133; n = 16 loops 3446, faer 2508 (2026-12-02).
 pub(crate) const FAER_MIN_FLOPS: usize = 8 * 8 * 8 + 1;
 
-/// Whether an `m × k` by `k × n` product goes to faer: never for compile-time sizes (n ≤ 12),
-/// and for run-time sizes only with a dimension above 12. So a problem within the compiled
-/// sizes computes the same bits whether it runs with compile-time or run-time sizes (faer
-/// sums in another order), which `filter_batch` relies on: its shared covariance recursion
-/// runs with run-time sizes, each series' mean with compile-time ones.
+/// Whether an `m × k` by `k × n` product goes to faer: only for sizes that allow it
+/// ([`Dims::FAER`]: not compile-time sizes, not in deterministic mode) and only with a
+/// dimension above 12. So a problem within the compiled sizes computes the same bits whether
+/// it runs with compile-time or run-time sizes (faer sums in another order), which
+/// `filter_batch` relies on: its shared covariance recursion runs with run-time sizes, each
+/// series' mean with compile-time ones.
 #[inline(always)]
 fn use_faer<D: Dims>(m: usize, k: usize, n: usize) -> bool {
-    !D::FIXED && m * k * n >= FAER_MIN_FLOPS && m.max(k).max(n) > 12
+    D::FAER && m * k * n >= FAER_MIN_FLOPS && m.max(k).max(n) > 12
 }
 
 fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {
@@ -57,13 +81,13 @@ pub(crate) fn mul<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usi
             for l in 1..k {
                 let ail = a[i * k + l];
                 for (cij, blj) in ci.iter_mut().zip(&b[l * n..(l + 1) * n]) {
-                    *cij += ail * blj;
+                    *cij = madd::<D>(*cij, ail, *blj);
                 }
             }
         }
         return;
     }
-    blocked_product(c, a, b, m, k, n, false);
+    blocked_product::<D>(c, a, b, m, k, n, false);
 }
 
 /// `c[m×n] = a[m×k] · b[k×n]` (with `upper`, m = n and only the upper triangle) in blocks of
@@ -73,30 +97,40 @@ pub(crate) fn mul<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usi
 /// first term, as in the plain loops. (Blocks of 2 rows × 8 columns, four independent vector
 /// sums, measured slower: 1.2 against 0.93 µs a step at n = 9.)
 #[inline(always)]
-fn blocked_product(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize, upper: bool) {
+fn blocked_product<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize, upper: bool) {
     for i in 0..m {
         let ai = &a[i * k..(i + 1) * k];
         let from = if upper { i } else { 0 };
-        for_column_blocks(from, n, |j, w| match w {
-            4 => row_times::<4>(&mut c[i * n + j..], ai, b, n, j),
-            2 => row_times::<2>(&mut c[i * n + j..], ai, b, n, j),
-            _ => row_times::<1>(&mut c[i * n + j..], ai, b, n, j),
-        });
+        for_column_blocks(
+            from,
+            n,
+            #[inline(always)]
+            |j, w| match w {
+                4 => row_times::<D, 4>(&mut c[i * n + j..], ai, b, n, j),
+                2 => row_times::<D, 2>(&mut c[i * n + j..], ai, b, n, j),
+                _ => row_times::<D, 1>(&mut c[i * n + j..], ai, b, n, j),
+            },
+        );
     }
 }
 
 /// `c[m×n] = a[m×k] · b[n×k]'` (with `upper`, only the upper triangle) in blocks as
 /// [`blocked_product`], each entry a dot product in order from the first term.
 #[inline(always)]
-fn blocked_product_t(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize, upper: bool) {
+fn blocked_product_t<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: usize, n: usize, upper: bool) {
     for i in 0..m {
         let ai = &a[i * k..(i + 1) * k];
         let from = if upper { i } else { 0 };
-        for_column_blocks(from, n, |j, w| match w {
-            4 => row_times_t::<4>(&mut c[i * n + j..], ai, b, k, j),
-            2 => row_times_t::<2>(&mut c[i * n + j..], ai, b, k, j),
-            _ => row_times_t::<1>(&mut c[i * n + j..], ai, b, k, j),
-        });
+        for_column_blocks(
+            from,
+            n,
+            #[inline(always)]
+            |j, w| match w {
+                4 => row_times_t::<D, 4>(&mut c[i * n + j..], ai, b, k, j),
+                2 => row_times_t::<D, 2>(&mut c[i * n + j..], ai, b, k, j),
+                _ => row_times_t::<D, 1>(&mut c[i * n + j..], ai, b, k, j),
+            },
+        );
     }
 }
 
@@ -118,12 +152,12 @@ fn for_column_blocks(from: usize, n: usize, mut block: impl FnMut(usize, usize))
 
 /// `c[..W] = a_row · b[:, j..j+W]` (`b` with `n` columns).
 #[inline(always)]
-fn row_times<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], n: usize, j: usize) {
+fn row_times<D: Dims, const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], n: usize, j: usize) {
     let mut acc = [0.0; W];
     for (l, &a_l) in a_row.iter().enumerate() {
         let b_l = &b[l * n + j..l * n + j + W];
         for q in 0..W {
-            acc[q] += a_l * b_l[q];
+            acc[q] = madd::<D>(acc[q], a_l, b_l[q]);
         }
     }
     c[..W].copy_from_slice(&acc);
@@ -132,11 +166,11 @@ fn row_times<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], n: usize, 
 /// `c[..W] = a_row · b[j..j+W, :]'` (`b` with `k` columns): W dot products, each in order
 /// from the first term, computed side by side.
 #[inline(always)]
-fn row_times_t<const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], k: usize, j: usize) {
+fn row_times_t<D: Dims, const W: usize>(c: &mut [f64], a_row: &[f64], b: &[f64], k: usize, j: usize) {
     let mut acc = [0.0; W];
     for (l, &a_l) in a_row.iter().enumerate() {
         for q in 0..W {
-            acc[q] += a_l * b[(j + q) * k + l];
+            acc[q] = madd::<D>(acc[q], a_l, b[(j + q) * k + l]);
         }
     }
     c[..W].copy_from_slice(&acc);
@@ -153,12 +187,12 @@ pub(crate) fn mul_bt<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], m: usize, k: 
     if D::UNROLL {
         for i in 0..m {
             for j in 0..n {
-                c[i * n + j] = dot_in_order(&a[i * k..(i + 1) * k], &b[j * k..(j + 1) * k]);
+                c[i * n + j] = dot_in_order::<D>(&a[i * k..(i + 1) * k], &b[j * k..(j + 1) * k]);
             }
         }
         return;
     }
-    blocked_product_t(c, a, b, m, k, n, false);
+    blocked_product_t::<D>(c, a, b, m, k, n, false);
 }
 
 /// `c[n×n] = a[n×k] · b[k×n]` for a product known to be symmetric (e.g. P H' S⁻¹ H P): one
@@ -174,7 +208,7 @@ pub(crate) fn mul_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k:
             for j in i..n {
                 let mut v = -0.0;
                 for l in 0..k {
-                    v += a[i * k + l] * b[l * n + j];
+                    v = madd::<D>(v, a[i * k + l], b[l * n + j]);
                 }
                 c[i * n + j] = v;
                 c[j * n + i] = v;
@@ -182,7 +216,7 @@ pub(crate) fn mul_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize, k:
         }
         return;
     }
-    blocked_product(c, a, b, n, k, n, true);
+    blocked_product::<D>(c, a, b, n, k, n, true);
     mirror_upper(c, n);
 }
 
@@ -198,23 +232,23 @@ pub(crate) fn mul_bt_sym<D: Dims>(c: &mut [f64], a: &[f64], b: &[f64], n: usize,
         for i in 0..n {
             let ai = &a[i * k..(i + 1) * k];
             for j in i..n {
-                let v = dot_in_order(ai, &b[j * k..(j + 1) * k]);
+                let v = dot_in_order::<D>(ai, &b[j * k..(j + 1) * k]);
                 c[i * n + j] = v;
                 c[j * n + i] = v;
             }
         }
         return;
     }
-    blocked_product_t(c, a, b, n, k, n, true);
+    blocked_product_t::<D>(c, a, b, n, k, n, true);
     mirror_upper(c, n);
 }
 
 /// `a · b` summed in order from the first term (as the blocked kernels sum).
 #[inline(always)]
-fn dot_in_order(a: &[f64], b: &[f64]) -> f64 {
+fn dot_in_order<D: Dims>(a: &[f64], b: &[f64]) -> f64 {
     let mut v = -0.0;
     for (x, y) in a.iter().zip(b) {
-        v += x * y;
+        v = madd::<D>(v, *x, *y);
     }
     v
 }
@@ -232,7 +266,7 @@ fn mirror_upper(c: &mut [f64], n: usize) {
 /// `a · b` with four interleaved partial sums: the sum's dependency chain is a quarter as long
 /// and the products vectorize (a mean-only filter step at n = 20 is mostly such sums).
 #[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+fn dot<D: Dims>(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
     let chunks = k / 4;
@@ -240,29 +274,29 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [-0.0; 4];
     for c in 0..chunks {
         for l in 0..4 {
-            acc[l] += a[4 * c + l] * b[4 * c + l];
+            acc[l] = madd::<D>(acc[l], a[4 * c + l], b[4 * c + l]);
         }
     }
     let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
     for i in 4 * chunks..k {
-        s += a[i] * b[i];
+        s = madd::<D>(s, a[i], b[i]);
     }
     s
 }
 
 /// `y[m] = a[m×k] · x[k]`.
 #[inline(always)]
-pub(crate) fn mul_vec(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
+pub(crate) fn mul_vec<D: Dims>(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
-        y[i] = dot(&a[i * k..(i + 1) * k], &x[..k]);
+        y[i] = dot::<D>(&a[i * k..(i + 1) * k], &x[..k]);
     }
 }
 
 /// `y[m] += a[m×k] · x[k]`.
 #[inline(always)]
-pub(crate) fn mul_vec_add(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
+pub(crate) fn mul_vec_add<D: Dims>(y: &mut [f64], a: &[f64], x: &[f64], m: usize, k: usize) {
     for i in 0..m {
-        y[i] += dot(&a[i * k..(i + 1) * k], &x[..k]);
+        y[i] += dot::<D>(&a[i * k..(i + 1) * k], &x[..k]);
     }
 }
 
@@ -321,7 +355,7 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
             }
         }
     }
-    solve_unit_lower(lu, b, n, r);
+    solve_unit_lower::<Dyn>(lu, b, n, r);
     for i in (0..n).rev() {
         for j in i + 1..n {
             let u = lu[i * n + j];
@@ -356,13 +390,13 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 /// the innovation covariance S: with no square roots its latency is one division per pivot,
 /// which bounds a small filter step.
 #[inline(always)]
-pub(crate) fn ldl(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
+pub(crate) fn ldl<D: Dims>(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
     let floor = 32.0 * n as f64 * f64::EPSILON;
     for j in 0..n {
         let a_jj = a[j * n + j];
         let mut d = a_jj;
         for l in 0..j {
-            d -= f[j * n + l] * (f[j * n + l] * f[l * n + l]);
+            d = msub::<D>(d, f[j * n + l], f[j * n + l] * f[l * n + l]);
         }
         // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
         if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d <= f64::MAX) {
@@ -373,7 +407,7 @@ pub(crate) fn ldl(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
         for i in j + 1..n {
             let mut s = a[i * n + j];
             for l in 0..j {
-                s -= f[i * n + l] * (f[j * n + l] * f[l * n + l]);
+                s = msub::<D>(s, f[i * n + l], f[j * n + l] * f[l * n + l]);
             }
             f[i * n + j] = s * inv;
         }
@@ -386,36 +420,36 @@ pub(crate) fn ldl(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
 
 /// Solves `S X = B` in place for `b[n×r]`, with `S = L D L'` given by its [`ldl`] factor `f`.
 #[inline(always)]
-pub(crate) fn ldl_solve(f: &[f64], b: &mut [f64], n: usize, r: usize) {
-    solve_unit_lower(f, b, n, r);
+pub(crate) fn ldl_solve<D: Dims>(f: &[f64], b: &mut [f64], n: usize, r: usize) {
+    solve_unit_lower::<D>(f, b, n, r);
     scale_by_inv_diag(f, b, n, r);
-    solve_unit_lower_t(f, b, n, r);
+    solve_unit_lower_t::<D>(f, b, n, r);
 }
 
 /// For a vector `b[n]`: replaces it by `S⁻¹ b` and returns `b' S⁻¹ b = Σ w_j² / d_j` with
 /// `w = L⁻¹ b` (a sum of nonnegative terms), for the [`ldl`] factor `f` of S.
 #[inline(always)]
-pub(crate) fn ldl_solve_quad(f: &[f64], b: &mut [f64], n: usize) -> f64 {
-    solve_unit_lower(f, b, n, 1);
+pub(crate) fn ldl_solve_quad<D: Dims>(f: &[f64], b: &mut [f64], n: usize) -> f64 {
+    solve_unit_lower::<D>(f, b, n, 1);
     let mut quad = -0.0;
     for (i, bi) in b.iter_mut().enumerate() {
         let w = *bi;
         *bi = w * (1.0 / f[i * n + i]);
-        quad += w * *bi;
+        quad = madd::<D>(quad, w, *bi);
     }
-    solve_unit_lower_t(f, b, n, 1);
+    solve_unit_lower_t::<D>(f, b, n, 1);
     quad
 }
 
 /// Solves `L X = B` in place for `b[n×r]`, `L` unit lower triangular (strict lower triangle
 /// of `l[n×n]`).
 #[inline(always)]
-fn solve_unit_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+fn solve_unit_lower<D: Dims>(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     for i in 1..n {
         for j in 0..i {
             let lij = l[i * n + j];
             for c in 0..r {
-                b[i * r + c] -= lij * b[j * r + c];
+                b[i * r + c] = msub::<D>(b[i * r + c], lij, b[j * r + c]);
             }
         }
     }
@@ -423,12 +457,12 @@ fn solve_unit_lower(l: &[f64], b: &mut [f64], n: usize, r: usize) {
 
 /// Solves `L' X = B` in place for `b[n×r]`, `L` unit lower triangular.
 #[inline(always)]
-fn solve_unit_lower_t(l: &[f64], b: &mut [f64], n: usize, r: usize) {
+fn solve_unit_lower_t<D: Dims>(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     for i in (0..n).rev() {
         for j in i + 1..n {
             let lji = l[j * n + i];
             for c in 0..r {
-                b[i * r + c] -= lji * b[j * r + c];
+                b[i * r + c] = msub::<D>(b[i * r + c], lji, b[j * r + c]);
             }
         }
     }
@@ -448,43 +482,43 @@ fn scale_by_inv_diag(l: &[f64], b: &mut [f64], n: usize, r: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::dims::{Dyn, Fixed};
+    use crate::core::dims::{Dyn, Fixed, Fused};
 
     #[test]
     fn ldl_solves_a_spd_system() {
         let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
         let mut f = [0.0; 9];
-        ldl(&mut f, &a, 3).unwrap();
+        ldl::<Dyn>(&mut f, &a, 3).unwrap();
         let b = [1.0, 2.0, 3.0];
         let mut x = b;
-        let quad = ldl_solve_quad(&f, &mut x, 3);
+        let quad = ldl_solve_quad::<Dyn>(&f, &mut x, 3);
         let mut back = [0.0; 3];
-        mul_vec(&mut back, &a, &x, 3, 3);
+        mul_vec::<Dyn>(&mut back, &a, &x, 3, 3);
         for (got, want) in back.iter().zip(b) {
             assert!((got - want).abs() < 1e-12);
         }
         let want_quad: f64 = b.iter().zip(&x).map(|(p, q)| p * q).sum();
         assert!((quad - want_quad).abs() < 1e-12);
         let mut cols = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0]; // 3 × 2
-        ldl_solve(&f, &mut cols, 3, 2);
+        ldl_solve::<Dyn>(&f, &mut cols, 3, 2);
         let mut first = [cols[0], cols[2], cols[4]];
         let mut back = [0.0; 3];
-        mul_vec(&mut back, &a, &first, 3, 3);
+        mul_vec::<Dyn>(&mut back, &a, &first, 3, 3);
         first = back;
         assert!((first[0] - 1.0).abs() < 1e-12 && first[1].abs() < 1e-12 && first[2].abs() < 1e-12);
         // det = 4 (15 − 1) − 2 (6 − 0.4) + 0.4 (2 − 2) = 44.8
         assert!((f[0] * f[4] * f[8] - 44.8).abs() < 1e-12);
         let mut f2 = [0.0; 4];
-        assert_eq!(ldl(&mut f2, &[1.0, 2.0, 2.0, 1.0], 2), Err(1));
-        assert_eq!(ldl(&mut f2[..1], &[1e-310], 1), Err(0));
+        assert_eq!(ldl::<Dyn>(&mut f2, &[1.0, 2.0, 2.0, 1.0], 2), Err(1));
+        assert_eq!(ldl::<Dyn>(&mut f2[..1], &[1e-310], 1), Err(0));
         // The second component is the first plus noise of variance 4 ε: a positive pivot at
         // rounding level of its own variance, refused; in other units (scaled by 1e±10) too.
         for scale in [1.0, 1e10, 1e-10] {
             let collinear = [scale * scale, scale, scale, 1.0 + 4.0 * f64::EPSILON];
-            assert_eq!(ldl(&mut f2, &collinear, 2), Err(1), "scale {scale}");
+            assert_eq!(ldl::<Dyn>(&mut f2, &collinear, 2), Err(1), "scale {scale}");
         }
         // Very different variances but uncorrelated components are fine.
-        assert_eq!(ldl(&mut f2, &[1e16, 0.0, 0.0, 1e-16], 2), Ok(()));
+        assert_eq!(ldl::<Dyn>(&mut f2, &[1e16, 0.0, 0.0, 1e-16], 2), Ok(()));
     }
 
     #[test]
@@ -534,11 +568,40 @@ mod tests {
                 f(&mut blocked, false);
                 assert_eq!(plain, blocked, "({m}, {k}, {n})");
             };
-            type F = Fixed<1, 1>;
-            both(&|c, p| if p { mul::<F>(c, &a, &b, m, k, n) } else { mul::<Dyn>(c, &a, &b, m, k, n) });
-            both(&|c, p| if p { mul_bt::<F>(c, &a, &bt, m, k, n) } else { mul_bt::<Dyn>(c, &a, &bt, m, k, n) });
-            both(&|c, p| if p { mul_sym::<F>(c, &a, &b, n, k) } else { mul_sym::<Dyn>(c, &a, &b, n, k) });
-            both(&|c, p| if p { mul_bt_sym::<F>(c, &a, &bt, n, k) } else { mul_bt_sym::<Dyn>(c, &a, &bt, n, k) });
+            products::<Fixed<1, 1>, Dyn>(&both, &a, &b, &bt, m, k, n);
+            // The fused forms too (here `mul_add` is a library call: same results, slower).
+            products::<Fused<Fixed<1, 1>>, Fused<Dyn>>(&both, &a, &b, &bt, m, k, n);
+        }
+    }
+
+    /// The four products in the plain form `P` (`plain = true`) and the blocked form `B`.
+    #[allow(clippy::type_complexity)]
+    fn products<P: Dims, B: Dims>(
+        both: &dyn Fn(&dyn Fn(&mut [f64], bool)),
+        a: &[f64],
+        b: &[f64],
+        bt: &[f64],
+        m: usize,
+        k: usize,
+        n: usize,
+    ) {
+        both(&|c, p| if p { mul::<P>(c, a, b, m, k, n) } else { mul::<B>(c, a, b, m, k, n) });
+        both(&|c, p| if p { mul_bt::<P>(c, a, bt, m, k, n) } else { mul_bt::<B>(c, a, bt, m, k, n) });
+        both(&|c, p| if p { mul_sym::<P>(c, a, b, n, k) } else { mul_sym::<B>(c, a, b, n, k) });
+        both(&|c, p| if p { mul_bt_sym::<P>(c, a, bt, n, k) } else { mul_bt_sym::<B>(c, a, bt, n, k) });
+    }
+
+    /// Fused products round once per multiply-add: they differ from the plain ones, by
+    /// rounding only.
+    #[test]
+    fn fused_products_differ_from_plain_ones_by_rounding() {
+        let a: Vec<f64> = (0..25).map(|i| (i as f64 * 0.37).sin()).collect();
+        let (mut plain, mut fused) = ([0.0; 25], [0.0; 25]);
+        mul::<Fixed<5, 5>>(&mut plain, &a, &a, 5, 5, 5);
+        mul::<Fused<Fixed<5, 5>>>(&mut fused, &a, &a, 5, 5, 5);
+        assert_ne!(plain, fused);
+        for (p, f) in plain.iter().zip(&fused) {
+            assert!((p - f).abs() <= 8.0 * f64::EPSILON, "{p} {f}");
         }
     }
 }

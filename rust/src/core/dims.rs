@@ -3,7 +3,8 @@
 //! The small dense kernels of [`super::dense`] take their sizes as arguments; called with
 //! [`Fixed`] sizes (compile-time constants) they are unrolled and vectorized for the common
 //! small state and output dimensions, with [`Dyn`] sizes they serve every other size. The
-//! arithmetic is identical either way, so results are the same bits.
+//! arithmetic is identical either way, so results are the same bits. [`Fused`] wraps either
+//! to make the kernels round each multiply-add once (see `core::isa`).
 
 /// The state and output sizes (n, m) of a step, and the buffer types that hold its vectors
 /// and matrices: local arrays for [`Fixed`] sizes (which the compiler can keep in registers),
@@ -30,6 +31,29 @@ pub(crate) trait Dims: Copy + Send + Sync {
     /// (compile-time sizes up to 8); otherwise they run in register blocks
     /// (`core::dense`), which also compile to much less code.
     const UNROLL: bool;
+
+    /// Whether each multiply-add of the kernels rounds once (`a.mul_add(b, c)`, [`Fused`]) or
+    /// twice (`c + a * b`). Fused sizes run only in loops compiled with FMA enabled
+    /// (`core::isa`); elsewhere `mul_add` would be a library call.
+    const FUSED: bool;
+
+    /// Whether products of run-time sizes above 12 may go to faer (`core::dense`), whose
+    /// kernels, and so rounding, depend on the CPU: with fused sizes and for the
+    /// matrix-equation solvers ([`Solver`]), not in deterministic mode.
+    const FAER: bool;
+
+    /// Runs `job`, a loop over buffers of these sizes, in the unfused loops of an AVX2 CPU
+    /// ([`Kernel::Avx2`](crate::core::isa::Kernel)): run-time sizes compiled for AVX2,
+    /// compile-time sizes in the baseline loop. Both give the same bits; compiling each of
+    /// the 42 compile-time sizes a third time, for AVX2 without FMA (deterministic mode),
+    /// doubled the release build (to 12 minutes) for a loop that only deterministic mode
+    /// runs. A trait method rather than an `if` on a constant so that only the loop used is
+    /// compiled.
+    ///
+    /// # Safety
+    /// Run-time sizes: the CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R;
 
     /// The state size n.
     fn n(self) -> usize;
@@ -69,6 +93,14 @@ impl Dims for Dyn {
 
     const FIXED: bool = false;
     const UNROLL: bool = false;
+    const FUSED: bool = false;
+    const FAER: bool = false;
+
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
+        // SAFETY: the caller checked that the CPU supports AVX2.
+        unsafe { crate::core::isa::run_avx2(job) }
+    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -93,6 +125,13 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
 
     const FIXED: bool = true;
     const UNROLL: bool = N <= 8;
+    const FUSED: bool = false;
+    const FAER: bool = false;
+
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
+        crate::core::isa::run_baseline(job)
+    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -101,6 +140,73 @@ impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
     #[inline(always)]
     fn m(self) -> usize {
         M
+    }
+}
+
+/// The sizes `D` with fused multiply-adds: the same buffers, the same order of operations,
+/// each `c + a * b` rounded once.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Fused<D>(pub D);
+
+impl<D: Dims> Dims for Fused<D> {
+    type Vector = D::Vector;
+    type Square = D::Square;
+    type Obs = D::Obs;
+    type ObsSquare = D::ObsSquare;
+    type StateObs = D::StateObs;
+
+    const FIXED: bool = D::FIXED;
+    const UNROLL: bool = D::UNROLL;
+    const FUSED: bool = true;
+    const FAER: bool = !D::FIXED;
+
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
+        // Not called (fused sizes run in the fused loops); delegating keeps it correct.
+        // SAFETY: as the caller's.
+        unsafe { self.0.run_unfused_avx2(job) }
+    }
+
+    #[inline(always)]
+    fn n(self) -> usize {
+        self.0.n()
+    }
+    #[inline(always)]
+    fn m(self) -> usize {
+        self.0.m()
+    }
+}
+
+/// Run-time sizes for the matrix-equation solvers (the DARE's doubling): as [`Dyn`], with
+/// large products in faer (the solvers are outside deterministic mode, docs/conventions.md).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Solver(pub Dyn);
+
+impl Dims for Solver {
+    type Vector = Vec<f64>;
+    type Square = Vec<f64>;
+    type Obs = Vec<f64>;
+    type ObsSquare = Vec<f64>;
+    type StateObs = Vec<f64>;
+
+    const FIXED: bool = false;
+    const UNROLL: bool = false;
+    const FUSED: bool = false;
+    const FAER: bool = true;
+
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
+        // SAFETY: as the caller's.
+        unsafe { self.0.run_unfused_avx2(job) }
+    }
+
+    #[inline(always)]
+    fn n(self) -> usize {
+        self.0.n
+    }
+    #[inline(always)]
+    fn m(self) -> usize {
+        self.0.m
     }
 }
 

@@ -265,26 +265,26 @@ impl<D: Dims> GaussianUpdate<D> {
     ) -> Result<()> {
         let n = d.n();
         let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
-        if let Err(j) = ldl(s_factor, &pred.innov_cov[..mo * mo], mo) {
+        if let Err(j) = ldl::<D>(s_factor, &pred.innov_cov[..mo * mo], mo) {
             return Err(not_positive_definite(t, j, mo));
         }
         let s_factor = &self.s_factor.get()[..mo * mo];
         self.log_det = LogDet::of_factor(s_factor, mo);
         let s_inv_e = &mut self.s_inv_e.get_mut()[..mo];
         s_inv_e.copy_from_slice(&pred.innov[..mo]);
-        self.quad = ldl_solve_quad(s_factor, s_inv_e, mo);
+        self.quad = ldl_solve_quad::<D>(s_factor, s_inv_e, mo);
         self.observed = mo;
 
         // K' = S⁻¹ C' by solves with the factor of S (never S⁻¹ itself).
         let cross_cov = &pred.cross_cov[..n * mo];
         let gain_t = &mut self.gain_t.get_mut()[..mo * n];
         transpose(gain_t, cross_cov, n, mo);
-        ldl_solve(s_factor, gain_t, mo, n);
+        ldl_solve::<D>(s_factor, gain_t, mo, n);
         let gain_t = &self.gain_t.get()[..mo * n];
 
         // x̂(t|t) = x̂(t|t−1) + C S⁻¹ e
         x_filt.copy_from_slice(x_pred);
-        mul_vec_add(x_filt, cross_cov, s_inv_e, n, mo);
+        mul_vec_add::<D>(x_filt, cross_cov, s_inv_e, n, mo);
 
         match pred.joseph {
             None => {
@@ -336,10 +336,10 @@ impl<D: Dims> GaussianUpdate<D> {
         let (n, m) = (d.n(), d.m());
         let s_inv_e = &mut self.s_inv_e.get_mut()[..m];
         s_inv_e.copy_from_slice(&innov[..m]);
-        self.quad = ldl_solve_quad(&self.s_factor.get()[..m * m], s_inv_e, m);
+        self.quad = ldl_solve_quad::<D>(&self.s_factor.get()[..m * m], s_inv_e, m);
         self.observed = m;
         x_filt.copy_from_slice(x_pred);
-        mul_vec_add(x_filt, &cross_cov[..n * m], s_inv_e, n, m);
+        mul_vec_add::<D>(x_filt, &cross_cov[..n * m], s_inv_e, n, m);
     }
 
     /// Loads the factor of S and ln det S recorded from another update (see

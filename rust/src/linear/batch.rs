@@ -13,6 +13,7 @@ use par::*;
 use crate::core::alloc::check_f64_arrays;
 use crate::core::dims::{with_dims, Dims, Dyn};
 use crate::core::gaussian::{LogDet, LoglikSum};
+use crate::core::isa::{kernel, run_best, Kernel};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::filter::{check_data, check_series, FilterOutputs, Run, UpdateForm, Workspace};
@@ -68,11 +69,14 @@ pub fn filter_batch(
 ) -> Result<bool> {
     let shared = shares_covariances(model, &batch);
     check_batch(model, &batch, &out, shared)?;
+    // One choice of loops for the whole call, so that every series and the shared
+    // covariance recursion compute with the same arithmetic.
+    let kernel = kernel();
     par::on_threads(thread_count(threads, batch.series), || {
         if shared {
-            run_shared(model, &batch, out)
+            run_shared(model, &batch, out, kernel)
         } else {
-            run_each(model, &batch, out)
+            run_each(model, &batch, out, kernel)
         }
     })?;
     Ok(shared)
@@ -177,9 +181,11 @@ struct SharedGains {
     p_filt: Vec<f64>,
 }
 
-fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
-    let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
-    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), &vec![0.0; n], b.p0);
+#[inline(always)]
+fn shared_gains<D: Dims>(d: D, model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
+    let (n, t) = (d.n(), b.steps);
+    let m = d.m();
+    let mut ws = Workspace::new(d, model.n_inputs(), &vec![0.0; n], b.p0);
     let zeros = vec![0.0; m];
     let zeros_u = vec![0.0; model.n_inputs()];
     let mut g = SharedGains {
@@ -202,19 +208,20 @@ fn shared_gains(model: &LinearGaussian, b: &Batch<'_>) -> Result<SharedGains> {
     Ok(g)
 }
 
-fn run_shared(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Result<()> {
+fn run_shared(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>, kernel: Kernel) -> Result<()> {
     let (n, m) = (model.n_states(), model.n_obs());
-    let gains = shared_gains(model, b)?;
+    let gains = run_best!(kernel, Dyn { n, m }, |d| shared_gains(d, model, b))?;
     if let Some(p) = out.p_filt {
         p.copy_from_slice(&gains.p_filt);
     }
-    with_dims!(n, m, |d| means_only_all(d, model, b, &gains, out.x_filt, out.loglik));
+    with_dims!(n, m, |d| means_only_all(d, kernel, model, b, &gains, out.x_filt, out.loglik));
     Ok(())
 }
 
 /// Every series' state recursion with the shared gains, in parallel.
 fn means_only_all<D: Dims>(
     d: D,
+    kernel: Kernel,
     model: &LinearGaussian,
     b: &Batch<'_>,
     gains: &SharedGains,
@@ -223,21 +230,21 @@ fn means_only_all<D: Dims>(
 ) {
     let (n, t) = (d.n(), b.steps);
     let rows = x_filt.par_chunks_mut(t * n).zip(loglik.par_iter_mut()).enumerate();
-    rows.for_each_init(
-        || Workspace::new(d, model.n_inputs(), &vec![0.0; n], b.p0),
-        |ws, (s, (x_out, ll))| {
-            let (y, u, x0, p0) = series_parts(model, b, s);
-            ws.set_state(x0, p0);
-            let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None };
-            *ll = run.means_only(ws, gains, x_out);
-        },
-    );
+    rows.for_each(|(s, (x_out, ll))| {
+        let (y, u, x0, p0) = series_parts(model, b, s);
+        let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None, kernel };
+        // Each series in a loop of the call's instruction set (a closure run by the thread
+        // pool is not compiled with it).
+        *ll = run_best!(kernel, d, |d| run.means_only(d, gains, x_out));
+    });
 }
 
 impl Run<'_> {
     /// The state recursion of one series with the shared gains; returns its log-likelihood.
-    fn means_only<D: Dims>(&self, ws: &mut Workspace<D>, g: &SharedGains, x_out: &mut [f64]) -> f64 {
+    #[inline(always)]
+    fn means_only<D: Dims>(&self, d: D, g: &SharedGains, x_out: &mut [f64]) -> f64 {
         let (n, m) = (self.model.n_states(), self.model.n_obs());
+        let mut ws = Workspace::new(d, self.model.n_inputs(), self.x0, self.p0);
         let mut total = LoglikSum::default();
         for t in 0..self.y.steps() {
             let sys = self.model.at(t);
@@ -253,7 +260,7 @@ impl Run<'_> {
     }
 }
 
-fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Result<()> {
+fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>, kernel: Kernel) -> Result<()> {
     let (n, m, t) = (model.n_states(), model.n_obs(), b.steps);
     let covs: Vec<Option<&mut [f64]>> = match out.p_filt {
         Some(p) => p.chunks_mut(t * n * n).map(Some).collect(),
@@ -262,7 +269,7 @@ fn run_each(model: &LinearGaussian, b: &Batch<'_>, out: BatchOutputs<'_>) -> Res
     out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).zip(covs).enumerate().try_for_each(
         |(s, ((x_out, ll), p_out))| -> Result<()> {
             let (y, u, x0, p0) = series_parts(model, b, s);
-            let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None };
+            let run = Run { model, y, u, x0, p0, form: b.form, converge_tol: None, kernel };
             let mut o = FilterOutputs::default();
             (o.x_filt, o.p_filt) = (Some(x_out), p_out);
             *ll = with_dims!(n, m, |d| run.filter(d, &mut o)).map_err(|e| prefix_series(e, s))?;
@@ -312,14 +319,4 @@ mod par {
             self.iter_mut()
         }
     }
-
-    /// rayon's `for_each_init`, sequential: one state for all items.
-    pub trait ForEachInit: Iterator + Sized {
-        fn for_each_init<S>(self, init: impl FnOnce() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
-            let mut state = init();
-            self.for_each(|item| f(&mut state, item));
-        }
-    }
-
-    impl<I: Iterator> ForEachInit for I {}
 }

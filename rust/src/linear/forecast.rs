@@ -63,9 +63,9 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
         out.x[j * n..(j + 1) * n].copy_from_slice(&xc);
         out.p[j * n * n..(j + 1) * n * n].copy_from_slice(&pc);
         let yj = &mut out.y[j * m..(j + 1) * m];
-        mul_vec(yj, sys.h, &xc, m, n);
+        mul_vec::<Dyn>(yj, sys.h, &xc, m, n);
         if let (Some(d), Some(u)) = (sys.d, u_j) {
-            mul_vec_add(yj, d, u, m, k);
+            mul_vec_add::<Dyn>(yj, d, u, m, k);
         }
         let sj = &mut out.y_cov[j * m * m..(j + 1) * m * m];
         mul_bt::<Dyn>(&mut tmp_nm, &pc, sys.h, n, n, m);
@@ -74,9 +74,9 @@ pub fn forecast(model: &LinearGaussian, x: &[f64], p: &[f64], steps: usize, u: O
             *s += r;
         }
         symmetrize(sj, m);
-        mul_vec(&mut tmp_n, sys.f, &xc, n, n);
+        mul_vec::<Dyn>(&mut tmp_n, sys.f, &xc, n, n);
         if let (Some(b), Some(u)) = (sys.b, u_j) {
-            mul_vec_add(&mut tmp_n, b, u, n, k);
+            mul_vec_add::<Dyn>(&mut tmp_n, b, u, n, k);
         }
         xc.copy_from_slice(&tmp_n);
         mul::<Dyn>(&mut tmp_nn, sys.f, &pc, n, n, n);

@@ -9,6 +9,7 @@
 //! ```
 
 use crate::core::dense::{mul_vec, mul_vec_add};
+use crate::core::dims::Dyn;
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
@@ -58,17 +59,17 @@ pub fn propagate(
         let u_t = u.map(|u| u.row(t));
         let (x_t, y_t) = (&xs[t * n..(t + 1) * n], &mut ys[t * m..(t + 1) * m]);
         y_t.copy_from_slice(v.row(t));
-        mul_vec_add(y_t, sys.h, x_t, m, n);
+        mul_vec_add::<Dyn>(y_t, sys.h, x_t, m, n);
         if let (Some(d), Some(u)) = (sys.d, u_t) {
-            mul_vec_add(y_t, d, u, m, k);
+            mul_vec_add::<Dyn>(y_t, d, u, m, k);
         }
         if t + 1 < steps {
-            mul_vec(&mut next, sys.f, x_t, n, n);
+            mul_vec::<Dyn>(&mut next, sys.f, x_t, n, n);
             for (a, wv) in next.iter_mut().zip(w.row(t)) {
                 *a += wv;
             }
             if let (Some(b), Some(u)) = (sys.b, u_t) {
-                mul_vec_add(&mut next, b, u, n, k);
+                mul_vec_add::<Dyn>(&mut next, b, u, n, k);
             }
             xs[(t + 1) * n..(t + 2) * n].copy_from_slice(&next);
         }

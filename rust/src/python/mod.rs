@@ -257,13 +257,50 @@ fn check_alloc(arg: &str, shapes: Vec<Vec<usize>>) -> PyResult<()> {
 }
 
 /// `kernel_info()`: how the compiled loops run on this machine, for benchmarks and bug
-/// reports: `{"instruction_set": "avx2" | "baseline", "fixed_sizes": "..."}`.
+/// reports: `{"instruction_set": "avx2+fma" | "avx2" | "baseline", "deterministic": bool,
+/// "cpu_features": "avx2 fma ...", "fixed_sizes": "..."}`.
 #[pyfunction]
 fn kernel_info(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     let info = pyo3::types::PyDict::new(py);
     info.set_item("instruction_set", crate::instruction_set())?;
+    info.set_item("deterministic", crate::deterministic())?;
+    info.set_item("cpu_features", crate::core::isa::cpu_features())?;
     info.set_item("fixed_sizes", crate::core::dims::FIXED_SIZES)?;
     Ok(info)
+}
+
+/// `set_deterministic(on)`: see `kfast.set_deterministic`; returns the previous setting.
+#[pyfunction]
+fn set_deterministic(on: bool) -> bool {
+    crate::set_deterministic(on)
+}
+
+/// `deterministic()`: whether deterministic mode is on.
+#[pyfunction]
+fn deterministic() -> bool {
+    crate::deterministic()
+}
+
+/// `_force_kernel(name)`: every later call runs the loops `name` ("baseline", "avx2",
+/// "avx2+fma"; `None` undoes it), for tests and benchmark rows. Raises `ValueError` if the
+/// name is unknown or this CPU cannot run it.
+#[pyfunction]
+#[pyo3(signature = (name))]
+fn _force_kernel(name: Option<&str>) -> PyResult<()> {
+    use crate::core::isa::{force_kernel, Kernel};
+    let kernel = match name {
+        None => None,
+        Some(name) => Some(
+            [Kernel::Baseline, Kernel::Avx2, Kernel::Avx2Fma]
+                .into_iter()
+                .find(|k| k.name() == name)
+                .ok_or_else(|| PyValueError::new_err(format!("name: unknown kernel {name:?}")))?,
+        ),
+    };
+    if !force_kernel(kernel) {
+        return Err(PyValueError::new_err(format!("name: this CPU cannot run the {name:?} loops")));
+    }
+    Ok(())
 }
 
 /// The fields a smoother adds to the filter's.
@@ -324,6 +361,9 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::filter_batch, m)?)?;
     m.add_function(wrap_pyfunction!(check_alloc, m)?)?;
     m.add_function(wrap_pyfunction!(kernel_info, m)?)?;
+    m.add_function(wrap_pyfunction!(set_deterministic, m)?)?;
+    m.add_function(wrap_pyfunction!(deterministic, m)?)?;
+    m.add_function(wrap_pyfunction!(_force_kernel, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;

@@ -22,7 +22,7 @@ use faer::linalg::solvers::Solve;
 use faer::{c64, Mat};
 
 use crate::core::dense::{lu_in_place, lu_solve, mul, mul_bt, symmetrize, transpose};
-use crate::core::dims::{Buf, Dims, Dyn, Fixed};
+use crate::core::dims::{Buf, Dims, Dyn, Fixed, Solver};
 use crate::core::mat::{checked_mat, from_mat, to_mat};
 use crate::error::{Error, Result};
 use crate::riccati::lyapunov::{solve_continuous_lyapunov, solve_discrete_lyapunov};
@@ -401,7 +401,7 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
     for it in 1..=100 {
         let (a, g, h) = (ak.get_mut(), gk.get_mut(), hk.get_mut());
         let w = w.get_mut();
-        mul::<Dyn>(w, g, h, n, n, n);
+        mul::<Solver>(w, g, h, n, n, n);
         for i in 0..n {
             w[i * n + i] += 1.0;
         }
@@ -410,16 +410,16 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
         v2.copy_from_slice(g);
         solve_twice(w, &mut piv, v1, v2, n);
         // G + A V2 A'
-        mul::<Dyn>(tmp, a, v2, n, n, n);
-        mul_bt::<Dyn>(next, tmp, a, n, n, n);
+        mul::<Solver>(tmp, a, v2, n, n, n);
+        mul_bt::<Solver>(next, tmp, a, n, n, n);
         for (gi, di) in g.iter_mut().zip(next.iter()) {
             *gi += di;
         }
         symmetrize(g, n);
         // H + A' H V1
-        mul::<Dyn>(tmp, h, v1, n, n, n);
+        mul::<Solver>(tmp, h, v1, n, n, n);
         transpose(at, a, n, n);
-        mul::<Dyn>(next, at, tmp, n, n, n);
+        mul::<Solver>(next, at, tmp, n, n, n);
         let (mut change, mut size) = (0.0f64, 0.0f64);
         for (hi, di) in h.iter_mut().zip(next.iter()) {
             *hi += di;
@@ -427,7 +427,7 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
         }
         symmetrize(h, n);
         // A V1
-        mul::<Dyn>(next, a, v1, n, n, n);
+        mul::<Solver>(next, a, v1, n, n, n);
         a.copy_from_slice(next);
         for v in h.iter() {
             size = size.max(v.abs());

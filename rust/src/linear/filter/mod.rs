@@ -19,7 +19,7 @@ use std::borrow::Borrow;
 
 use crate::core::dims::{with_dims, Buf, Dims};
 use crate::core::gaussian::LoglikSum;
-use crate::core::isa::run_best;
+use crate::core::isa::{kernel, run_best, Kernel};
 pub use crate::core::Series;
 use crate::error::Result;
 use crate::linear::model::{LinearGaussian, StepView};
@@ -91,7 +91,7 @@ pub fn filter_into(
     let steps = check_data(model, y, u, x0, p0)?;
     out.check_sizes(steps, n, m)?;
     let converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let run = Run { model, y, u, x0, p0, form: options.form, converge_tol };
+    let run = Run { model, y, u, x0, p0, form: options.form, converge_tol, kernel: kernel() };
     with_dims!(n, m, |d| run.filter(d, &mut out))
 }
 
@@ -119,6 +119,8 @@ pub(crate) struct Run<'a> {
     pub form: UpdateForm,
     /// Freeze the gains once converged (see [`FilterOptions::converge_tol`]).
     pub converge_tol: Option<f64>,
+    /// The loops to run (`core::isa`), read once per call.
+    pub kernel: Kernel,
 }
 
 /// A constant model's F, H, Q, R and N copied once into buffers of the call's sizes (local
@@ -167,20 +169,14 @@ impl<D: Dims> LocalMatrices<D> {
 impl Run<'_> {
     /// The filter from the prior `(x0, p0)`, storing the outputs that are given; returns the
     /// log-likelihood. Two loops, each its own function compiled for each instruction set
-    /// ([`run_best`]; in one function they share registers and slow each other down): a
+    /// (`run_best!`; in one function they share registers and slow each other down): a
     /// constant model without N or gain freezing, its matrices copied into local buffers and
     /// the branches for those compiled out (~7% of a step at n = 4), and everything else.
     pub(crate) fn filter<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
         if self.model.steps().is_none() && self.model.at(0).n.is_none() && self.converge_tol.is_none() {
-            return run_best(
-                #[inline(always)]
-                move || self.filter_plain(d, out),
-            );
+            return run_best!(self.kernel, d, |d| self.filter_plain(d, out));
         }
-        run_best(
-            #[inline(always)]
-            move || self.filter_general(d, out),
-        )
+        run_best!(self.kernel, d, |d| self.filter_general(d, out))
     }
 
     /// A constant model without N or gain freezing. The workspace lives here, on this

@@ -356,9 +356,15 @@ impl<D: Dims> Workspace<D> {
         form: UpdateForm,
         t: usize,
     ) -> Result<()> {
-        self.update(sys, y, u, form, t)?;
-        self.predict(sys, u);
-        Ok(())
+        // Not inlined, so not compiled with the loop's instruction set: fused sizes need FMA.
+        crate::core::isa::run_for::<D, _>(
+            #[inline(always)]
+            || {
+                self.update(sys, y, u, form, t)?;
+                self.predict(sys, u);
+                Ok(())
+            },
+        )
     }
 
     /// [`update`](Self::update) for a `y` with every component observed. Everything it does
@@ -455,9 +461,9 @@ impl<D: Dims> Workspace<D> {
     fn innovation(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>) {
         let (n, m) = (self.d.n(), self.d.m());
         let innov = self.innov.get_mut();
-        mul_vec(innov, sys.h, self.x_pred.get(), m, n);
+        mul_vec::<D>(innov, sys.h, self.x_pred.get(), m, n);
         if let (Some(dm), Some(u)) = (sys.d, u) {
-            mul_vec_add(innov, dm, u, m, self.k);
+            mul_vec_add::<D>(innov, dm, u, m, self.k);
         }
         // `[..m]`: a loop over the compile-time m (y's length is m, checked by the caller).
         for (e, yi) in innov.iter_mut().zip(&y[..m]) {
@@ -564,13 +570,13 @@ impl<D: Dims> Workspace<D> {
         debug_assert!(features.freezing || self.converge_tol.is_none());
         let cross_cov = sys.n.filter(|_| features.cross_cov);
         let x_pred = self.x_pred.get_mut();
-        mul_vec(x_pred, sys.f, self.x_filt.get(), n, n);
+        mul_vec::<D>(x_pred, sys.f, self.x_filt.get(), n, n);
         if let (Some(b), Some(u)) = (sys.b, u) {
-            mul_vec_add(x_pred, b, u, n, self.k);
+            mul_vec_add::<D>(x_pred, b, u, n, self.k);
         }
         if features.freezing && self.frozen {
             if let Some(nn) = cross_cov {
-                mul_vec_add(x_pred, nn, self.update.s_inv_e(m), n, m);
+                mul_vec_add::<D>(x_pred, nn, self.update.s_inv_e(m), n, m);
             }
             return;
         }
@@ -616,11 +622,11 @@ impl<D: Dims> Workspace<D> {
         if let Some(nn) = cross_cov {
             let n_o = if mo == m { &nn[..n * m] } else { &self.partial.n.get()[..n * mo] };
             // x̂(t+1|t) += N S⁻¹ e
-            mul_vec_add(self.x_pred.get_mut(), n_o, self.update.s_inv_e(mo), n, mo);
+            mul_vec_add::<D>(self.x_pred.get_mut(), n_o, self.update.s_inv_e(mo), n, mo);
             // G' = S⁻¹ N' (mo × n); K_pred = F K + G.
             let g_t = &mut self.s_inv_nt.get_mut()[..mo * n];
             transpose(g_t, n_o, n, mo);
-            ldl_solve(self.update.s_factor(mo), g_t, mo, n);
+            ldl_solve::<D>(self.update.s_factor(mo), g_t, mo, n);
             // P(t+1|t) −= K_pred N' + N (F K)'
             let p_pred = self.p_pred.get_mut();
             for r in 0..n {

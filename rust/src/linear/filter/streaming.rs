@@ -3,10 +3,12 @@
 use std::borrow::Borrow;
 use std::sync::Arc;
 
+use super::step::LastUpdate;
 use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
-use crate::core::dims::Dyn;
+use crate::core::dims::{Dyn, Fused};
 use crate::core::gaussian::LoglikSum;
+use crate::core::isa::{kernel, run_for, Kernel};
 use crate::core::validate::{
     check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
 };
@@ -19,11 +21,12 @@ use crate::linear::validate::check_input_width;
 /// The state starts as the prior `x̂(0|−1), P(0|−1)`. After `update` at step t, [`x`](Self::x)
 /// and [`p`](Self::p) are `x̂(t|t), P(t|t)`; after `predict` they are `x̂(t+1|t), P(t+1|t)` and
 /// the step counter advances. `predict` without an `update` treats the step as missing.
-/// Results equal [`filter`](super::filter) on the same data.
+/// Results equal [`filter`](super::filter) on the same data, computed with the arithmetic
+/// chosen when the filter was made (fused multiply-adds or not, `core::isa`), for its life.
 #[derive(Debug, Clone)]
 pub struct KalmanFilter<M: Borrow<LinearGaussian> = Arc<LinearGaussian>> {
     model: M,
-    ws: Workspace<Dyn>,
+    ws: StreamWorkspace,
     form: UpdateForm,
     t: usize,
     updated: bool,
@@ -36,8 +39,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub fn new(model: M, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
         let lg = model.borrow();
         check_prior(lg.n_states(), x0, p0)?;
-        let d = Dyn { n: lg.n_states(), m: lg.n_obs() };
-        let ws = Workspace::new(d, lg.n_inputs(), x0, p0);
+        let ws = StreamWorkspace::new(Dyn { n: lg.n_states(), m: lg.n_obs() }, lg.n_inputs(), x0, p0);
         Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: LoglikSum::default() })
     }
 
@@ -79,8 +81,12 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
             }
             sys.r = &r_sym;
         }
-        self.ws.update(&sys, y, u, self.form, t)?;
-        self.ws.add_loglik(&mut self.loglik);
+        let (form, loglik) = (self.form, &mut self.loglik);
+        on_workspace!(compute &mut self.ws, |ws| {
+            ws.update(&sys, y, u, form, t)?;
+            ws.add_loglik(loglik);
+            Ok::<(), Error>(())
+        })?;
         self.updated = true;
         Ok(())
     }
@@ -88,11 +94,14 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// Time update to the next step; `u` is needed when the model has B.
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
         self.check_input(u, "B", self.model().matrices().b.is_some())?;
-        if !self.updated {
-            self.ws.skip_update();
-        }
         let sys = self.model.borrow().at(self.t);
-        self.ws.predict(&sys, u);
+        let updated = self.updated;
+        on_workspace!(compute &mut self.ws, |ws| {
+            if !updated {
+                ws.skip_update();
+            }
+            ws.predict(&sys, u)
+        });
         self.t += 1;
         self.updated = false;
         Ok(())
@@ -131,20 +140,14 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// Current state estimate: `x̂(t|t)` after an update, `x̂(t|t−1)` otherwise.
     pub fn x(&self) -> &[f64] {
-        if self.updated {
-            self.ws.x_filt()
-        } else {
-            self.ws.x_pred()
-        }
+        let updated = self.updated;
+        on_workspace!(&self.ws, |ws| if updated { ws.x_filt() } else { ws.x_pred() })
     }
 
     /// Covariance of [`x`](Self::x).
     pub fn p(&self) -> &[f64] {
-        if self.updated {
-            self.ws.p_filt()
-        } else {
-            self.ws.p_pred()
-        }
+        let updated = self.updated;
+        on_workspace!(&self.ws, |ws| if updated { ws.p_filt() } else { ws.p_pred() })
     }
 
     /// The current step t (number of predicts so far).
@@ -173,8 +176,14 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         self.updated
     }
 
-    pub(crate) fn workspace(&self) -> &Workspace<Dyn> {
-        &self.ws
+    /// What the last update used (`h`: the step's full H), for the fixed-lag smoother.
+    pub(crate) fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a> {
+        on_workspace!(&self.ws, |ws| ws.last_update(h))
+    }
+
+    /// The predictor gain of the last time update, for the fixed-lag smoother.
+    pub(crate) fn gain_pred(&self) -> &[f64] {
+        on_workspace!(&self.ws, |ws| ws.gain_pred())
     }
 
     /// The covariance update form.
@@ -187,7 +196,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// they determine everything the filter does next (see [`resume`](Self::resume)).
     #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
     pub(crate) fn prediction(&self) -> (&[f64], &[f64]) {
-        (self.ws.x_pred(), self.ws.p_pred())
+        on_workspace!(&self.ws, |ws| (ws.x_pred(), ws.p_pred()))
     }
 
     /// The filter at step `t` before its update, from the [`prediction`](Self::prediction)
@@ -219,10 +228,47 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
                 return Err(Error::arg("t", format!("is {t}, past the {tm} steps of the model's per-step matrices")));
             }
         }
-        let ws = Workspace::new(Dyn { n, m }, k, x_pred, p_pred);
+        let ws = StreamWorkspace::new(Dyn { n, m }, k, x_pred, p_pred);
         Ok(KalmanFilter { model, ws, form, t, updated: false, loglik })
     }
 }
+
+/// The streaming filter's workspace, with the arithmetic of the loops chosen when it was made.
+#[derive(Debug, Clone)]
+enum StreamWorkspace {
+    Plain(Workspace<Dyn>),
+    Fused(Workspace<Fused<Dyn>>),
+}
+
+impl StreamWorkspace {
+    fn new(d: Dyn, k: usize, x0: &[f64], p0: &[f64]) -> Self {
+        match kernel() {
+            Kernel::Avx2Fma => StreamWorkspace::Fused(Workspace::new(Fused(d), k, x0, p0)),
+            _ => StreamWorkspace::Plain(Workspace::new(d, k, x0, p0)),
+        }
+    }
+}
+
+/// `$body` on the workspace `$w` of either arithmetic; with `compute`, fused arithmetic runs
+/// with FMA enabled (`run_for`).
+macro_rules! on_workspace {
+    (compute $ws:expr, |$w:ident| $body:expr) => {
+        match $ws {
+            StreamWorkspace::Plain($w) => $body,
+            StreamWorkspace::Fused($w) => run_for::<Fused<Dyn>, _>(
+                #[inline(always)]
+                || $body,
+            ),
+        }
+    };
+    ($ws:expr, |$w:ident| $body:expr) => {
+        match $ws {
+            StreamWorkspace::Plain($w) => $body,
+            StreamWorkspace::Fused($w) => $body,
+        }
+    };
+}
+use on_workspace;
 
 /// A matrix given for one step ([`KalmanFilter::update_with`]): `rows × cols` finite values.
 fn check_step_matrix(arg: &'static str, values: &[f64], rows: usize, cols: usize, t: usize) -> Result<()> {

@@ -5,7 +5,8 @@
 use std::sync::Arc;
 
 use super::past::{PastState, Scratch};
-use crate::core::dims::Dyn;
+use crate::core::dims::{Dims, Dyn};
+use crate::core::isa::{kernel, run_best};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::filter::step::LastUpdate;
@@ -37,13 +38,13 @@ impl LagWindow {
     }
 
     /// Shifts the window by one step and starts slot 0 from the filter's prediction at t.
-    fn begin_step(&mut self, ws: &Workspace<Dyn>) {
+    fn begin_step(&mut self, x_pred: &[f64], p_pred: &[f64]) {
         if self.slots.len() <= self.lag {
             // Only while an online window fills; `allocated` windows never get here.
             self.slots.push(PastState::new(self.n));
         }
         self.slots.rotate_right(1);
-        self.slots[0].start(ws.x_pred(), ws.p_pred());
+        self.slots[0].start(x_pred, p_pred);
         self.len = (self.len + 1).min(self.slots.len());
     }
 
@@ -54,8 +55,8 @@ impl LagWindow {
     }
 
     /// After the filter's time update at t (with F[t], H[t]): advance every cross covariance.
-    fn end_step(&mut self, f: &[f64], h: &[f64], ws: &Workspace<Dyn>) {
-        self.scratch.set_closed_loop(f, h, ws.gain_pred());
+    fn end_step(&mut self, f: &[f64], h: &[f64], gain_pred: &[f64]) {
+        self.scratch.set_closed_loop(f, h, gain_pred);
         for slot in &mut self.slots[..self.len] {
             slot.advance(&mut self.scratch);
         }
@@ -158,30 +159,81 @@ pub fn smooth_fixed_lag_into(
     let (n, m) = (model.n_states(), model.n_obs());
     check_len("x_smooth", x_out, steps * n)?;
     check_len("P_smooth", p_out, steps * n * n)?;
-    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), x0, p0);
-    let mut window = LagWindow::allocated(n, m, lag.min(steps - 1));
-    let emit = |s: usize, slot: &PastState, x_out: &mut [f64], p_out: &mut [f64]| {
-        x_out[s * n..(s + 1) * n].copy_from_slice(&slot.x);
-        p_out[s * n * n..(s + 1) * n * n].copy_from_slice(&slot.p);
-    };
-    for t in 0..steps {
-        let sys = model.at(t);
-        let u_t = u.map(|u| u.row(t));
-        ws.update(&sys, y.row(t), u_t, form, t)?;
-        window.begin_step(&ws);
-        window.update(&ws.last_update(sys.h));
-        if window.is_full() {
-            emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
+    let pass = Pass { model, y, u, x0, p0, form };
+    run_best!(kernel(), Dyn { n, m }, |d| pass.fixed_lag(d, lag, x_out, p_out))
+}
+
+/// A smoother's forward pass over validated data.
+struct Pass<'a> {
+    model: &'a LinearGaussian,
+    y: Series<'a>,
+    u: Option<Series<'a>>,
+    x0: &'a [f64],
+    p0: &'a [f64],
+    form: UpdateForm,
+}
+
+impl Pass<'_> {
+    /// The loop of [`smooth_fixed_lag_into`], with the filter's arithmetic for sizes `D`.
+    #[inline(always)]
+    fn fixed_lag<D: Dims>(&self, d: D, lag: usize, x_out: &mut [f64], p_out: &mut [f64]) -> Result<()> {
+        let Pass { model, y, u, x0, p0, form } = *self;
+        let (n, m, steps) = (d.n(), d.m(), y.steps());
+        let mut ws = Workspace::new(d, model.n_inputs(), x0, p0);
+        let mut window = LagWindow::allocated(n, m, lag.min(steps - 1));
+        let emit = |s: usize, slot: &PastState, x_out: &mut [f64], p_out: &mut [f64]| {
+            x_out[s * n..(s + 1) * n].copy_from_slice(&slot.x);
+            p_out[s * n * n..(s + 1) * n * n].copy_from_slice(&slot.p);
+        };
+        for t in 0..steps {
+            let sys = model.at(t);
+            let u_t = u.map(|u| u.row(t));
+            ws.update(&sys, y.row(t), u_t, form, t)?;
+            window.begin_step(ws.x_pred(), ws.p_pred());
+            window.update(&ws.last_update(sys.h));
+            if window.is_full() {
+                emit(t - window.lag(), &window.slots[window.lag()], x_out, p_out);
+            }
+            ws.predict(&sys, u_t);
+            window.end_step(sys.f, sys.h, ws.gain_pred());
         }
-        ws.predict(&sys, u_t);
-        window.end_step(sys.f, sys.h, &ws);
+        // The last states have less than `lag` steps of data after them: x̂(T−1−i | T−1).
+        let emitted = steps.saturating_sub(window.lag());
+        for s in emitted..steps {
+            emit(s, &window.slots[steps - 1 - s], x_out, p_out);
+        }
+        Ok(())
     }
-    // The last states have less than `lag` steps of data after them: x̂(T−1−i | T−1).
-    let emitted = steps.saturating_sub(window.lag());
-    for s in emitted..steps {
-        emit(s, &window.slots[steps - 1 - s], x_out, p_out);
+
+    /// The loop of [`smooth_fixed_point`] into `res`.
+    #[inline(always)]
+    fn fixed_point<D: Dims>(&self, d: D, res: &mut FixedPointResult) -> Result<()> {
+        let Pass { model, y, u, x0, p0, form } = *self;
+        let (n, m, steps, t_point) = (d.n(), d.m(), y.steps(), res.t_point);
+        let mut ws = Workspace::new(d, model.n_inputs(), x0, p0);
+        let mut past = PastState::new(n);
+        let mut scratch = Scratch::new(n, m);
+        for t in 0..steps {
+            let sys = model.at(t);
+            let u_t = u.map(|u| u.row(t));
+            ws.update(&sys, y.row(t), u_t, form, t)?;
+            if t >= t_point {
+                if t == t_point {
+                    past.start(ws.x_pred(), ws.p_pred());
+                }
+                past.update(&ws.last_update(sys.h), &mut scratch);
+                let j = t - t_point;
+                res.x[j * n..(j + 1) * n].copy_from_slice(&past.x);
+                res.p[j * n * n..(j + 1) * n * n].copy_from_slice(&past.p);
+            }
+            ws.predict(&sys, u_t);
+            if t >= t_point {
+                scratch.set_closed_loop(sys.f, sys.h, ws.gain_pred());
+                past.advance(&mut scratch);
+            }
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 /// Estimates of one state from growing amounts of data.
@@ -217,28 +269,9 @@ pub fn smooth_fixed_point(
     let (n, m) = (model.n_states(), model.n_obs());
     let rows = steps - t_point;
     let mut res = FixedPointResult { t_point, x: vec![0.0; rows * n], p: vec![0.0; rows * n * n] };
-    let mut ws = Workspace::new(Dyn { n, m }, model.n_inputs(), x0, p0);
-    let mut past = PastState::new(n);
-    let mut scratch = Scratch::new(n, m);
-    for t in 0..steps {
-        let sys = model.at(t);
-        let u_t = u.map(|u| u.row(t));
-        ws.update(&sys, y.row(t), u_t, form, t)?;
-        if t >= t_point {
-            if t == t_point {
-                past.start(ws.x_pred(), ws.p_pred());
-            }
-            past.update(&ws.last_update(sys.h), &mut scratch);
-            let j = t - t_point;
-            res.x[j * n..(j + 1) * n].copy_from_slice(&past.x);
-            res.p[j * n * n..(j + 1) * n * n].copy_from_slice(&past.p);
-        }
-        ws.predict(&sys, u_t);
-        if t >= t_point {
-            scratch.set_closed_loop(sys.f, sys.h, ws.gain_pred());
-            past.advance(&mut scratch);
-        }
-    }
+    let pass = Pass { model, y, u, x0, p0, form };
+    let out = &mut res;
+    run_best!(kernel(), Dyn { n, m }, |d| pass.fixed_point(d, out))?;
     Ok(res)
 }
 
@@ -269,10 +302,10 @@ impl FixedLagSmoother {
     /// Measurement update with y at the current step.
     pub fn update(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
         self.filter.update(y, u)?;
-        let ws = self.filter.workspace();
         let sys = self.filter.model().at(self.filter.t());
-        self.window.begin_step(ws);
-        self.window.update(&ws.last_update(sys.h));
+        let (x_pred, p_pred) = self.filter.prediction();
+        self.window.begin_step(x_pred, p_pred);
+        self.window.update(&self.filter.last_update(sys.h));
         Ok(())
     }
 
@@ -281,11 +314,12 @@ impl FixedLagSmoother {
         let t = self.filter.t();
         if !self.filter.is_updated() {
             self.filter.check_input(u, "B", self.filter.model().matrices().b.is_some())?;
-            self.window.begin_step(self.filter.workspace());
+            let (x_pred, p_pred) = self.filter.prediction();
+            self.window.begin_step(x_pred, p_pred);
         }
         self.filter.predict(u)?;
         let sys = self.filter.model().at(t);
-        self.window.end_step(sys.f, sys.h, self.filter.workspace());
+        self.window.end_step(sys.f, sys.h, self.filter.gain_pred());
         Ok(())
     }
 

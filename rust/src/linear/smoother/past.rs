@@ -81,11 +81,11 @@ impl PastState {
         let cht = &mut sc.cht[..n * mo];
         mul_bt::<Dyn>(cht, &self.c, last.h, n, n, mo);
         // x̂(s|t) = x̂(s|t−1) + C H' (S⁻¹ e)
-        mul_vec_add(&mut self.x, cht, last.s_inv_e, n, mo);
+        mul_vec_add::<Dyn>(&mut self.x, cht, last.s_inv_e, n, mo);
         // P(s|t) = P(s|t−1) − (C H') S⁻¹ (C H')'
         let w = &mut sc.s_inv_hct[..mo * n];
         transpose(w, cht, n, mo);
-        ldl_solve(last.s_factor, w, mo, n);
+        ldl_solve::<Dyn>(last.s_factor, w, mo, n);
         mul::<Dyn>(&mut sc.nn, cht, w, n, mo, n);
         for (p, d) in self.p.iter_mut().zip(&sc.nn) {
             *p -= d;

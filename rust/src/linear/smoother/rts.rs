@@ -16,7 +16,9 @@
 
 use crate::core::dense::{ldl, ldl_solve, mul, mul_bt, mul_sym, mul_vec_add, symmetrize, transpose};
 use crate::core::dims::with_dims;
+use crate::core::dims::Fused;
 use crate::core::dims::{Buf, Dims};
+use crate::core::isa::{kernel, Kernel};
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
 
@@ -117,20 +119,34 @@ struct Scratch<D: Dims> {
 }
 
 impl Backward<'_> {
-    /// All steps t = T−2 … 0; on x86-64 CPUs with AVX2 compiled a second time for them (same
-    /// bits: no fused multiply-adds).
+    /// All steps t = T−2 … 0, compiled for the loops of `core::isa` like the filter's (in
+    /// methods of their own: through a closure the arrays would lose their no-alias facts).
     fn run<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], p_lag1: Option<&mut [f64]>) -> Result<()> {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.run_avx2(d, x, p, p_lag1) };
+        match kernel() {
+            // SAFETY: kernel() returns these only on CPUs with the instruction sets enabled.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2Fma => unsafe { self.run_avx2_fma(Fused(d), x, p, p_lag1) },
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => unsafe { self.run_avx2(d, x, p, p_lag1) },
+            _ => self.run_loop(d, x, p, p_lag1),
         }
-        self.run_loop(d, x, p, p_lag1)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn run_avx2<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], p_lag1: Option<&mut [f64]>) -> Result<()> {
+        self.run_loop(d, x, p, p_lag1)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn run_avx2_fma<D: Dims>(
+        &self,
+        d: D,
+        x: &mut [f64],
+        p: &mut [f64],
+        p_lag1: Option<&mut [f64]>,
+    ) -> Result<()> {
         self.run_loop(d, x, p, p_lag1)
     }
 
@@ -178,7 +194,7 @@ impl Backward<'_> {
                 *j -= d;
             }
         }
-        solve_psd(p_pred, jt, sc.factor.get_mut(), n).map_err(|e| Error::arg("P_pred", e).at_step(Some(t + 1)))?;
+        solve_psd::<D>(p_pred, jt, sc.factor.get_mut(), n).map_err(|e| Error::arg("P_pred", e).at_step(Some(t + 1)))?;
         let (j, jt) = (sc.j.get_mut(), sc.jt.get());
         transpose(j, jt, n, n);
         // x̂(t|T−1) = x̂(t|t) + J (x̂(t+1|T−1) − x̂(t+1|t))
@@ -187,7 +203,7 @@ impl Backward<'_> {
         for ((d, xs), xp) in dx.iter_mut().zip(x_next.iter()).zip(&self.priors.x_pred[(t + 1) * n..(t + 2) * n]) {
             *d = xs - xp;
         }
-        mul_vec_add(x_cur, j, dx, n, n);
+        mul_vec_add::<D>(x_cur, j, dx, n, n);
         // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'   (a symmetric product)
         let dp = sc.dp.get_mut();
         for (d, (ps, pp)) in dp.iter_mut().zip(p_next.iter().zip(p_pred)) {
@@ -216,9 +232,9 @@ impl Backward<'_> {
 /// errors of B outside that range into an error of order one (issue 9: the WPI AR(3) model
 /// with R = 0, whose P(1|0) computed in Joseph form had a pivot of 2e-32).
 #[inline(always)]
-fn solve_psd(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
-    if ldl(factor, a, n).is_ok() && pivots_above_rounding(a, factor, n) {
-        ldl_solve(factor, b, n, n);
+fn solve_psd<D: Dims>(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
+    if ldl::<D>(factor, a, n).is_ok() && pivots_above_rounding(a, factor, n) {
+        ldl_solve::<D>(factor, b, n, n);
         return Ok(());
     }
     solve_pseudo_inverse(a, b, n)
@@ -273,6 +289,7 @@ fn solve_pseudo_inverse(a: &[f64], b: &mut [f64], n: usize) -> std::result::Resu
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::dims::Dyn;
 
     /// [[3, 1], [1, 1/3]] is singular; with 1/3 rounded up by one ulp its second L D L' pivot
     /// is 5.6e-17, at rounding level, which the factorization refuses. The right-hand side lies
@@ -283,9 +300,9 @@ mod tests {
         let third_up = f64::from_bits((1.0f64 / 3.0).to_bits() + 1);
         let a = [3.0, 1.0, 1.0, third_up];
         let mut factor = [0.0; 4];
-        assert_eq!(ldl(&mut factor, &a, 2), Err(1));
+        assert_eq!(ldl::<Dyn>(&mut factor, &a, 2), Err(1));
         let mut x = [3.0, 6.0, 1.0 + f64::EPSILON, 2.0];
-        solve_psd(&a, &mut x, &mut factor, 2).unwrap();
+        solve_psd::<Dyn>(&a, &mut x, &mut factor, 2).unwrap();
         // The minimum-norm solution for the exactly singular matrix: A⁺ = (3/100) [3, 1]'[3, 1].
         for (got, want) in x.iter().zip([0.9, 1.8, 0.3, 0.6]) {
             assert!((got - want).abs() < 1e-12, "{x:?}");
@@ -297,12 +314,12 @@ mod tests {
     fn a_well_scaled_nonsingular_matrix_keeps_the_factorization() {
         let a = [1e6, 1e-2, 1e-2, 1e-6];
         let mut factor = [0.0; 4];
-        ldl(&mut factor, &a, 2).unwrap();
+        ldl::<Dyn>(&mut factor, &a, 2).unwrap();
         assert!(pivots_above_rounding(&a, &factor, 2));
         let mut expected = [1.0, 2.0, 3.0, 4.0];
-        ldl_solve(&factor, &mut expected, 2, 2);
+        ldl_solve::<Dyn>(&factor, &mut expected, 2, 2);
         let mut x = [1.0, 2.0, 3.0, 4.0];
-        solve_psd(&a, &mut x, &mut factor, 2).unwrap();
+        solve_psd::<Dyn>(&a, &mut x, &mut factor, 2).unwrap();
         assert_eq!(x, expected);
     }
 }

@@ -1,0 +1,47 @@
+"""Fused multiply-adds or the same bits on every CPU (docs/conventions.md, "Arithmetic").
+
+kfast's filter and smoother loops run with the widest instruction set the CPU has. By
+default, on x86-64 CPUs with AVX2 and FMA, their multiply-adds are *fused*: ``c + a * b``
+rounds once instead of twice, which is faster and as accurate, but the last bits then depend
+on the CPU. In *deterministic* mode the loops never fuse, and every CPU (with or without
+AVX2, x86-64 or ARM) computes the same bits. Either way every path (``filter``,
+``filter_batch``, ``KalmanFilter``, the smoothers) computes the same recursion the same way,
+so they agree with each other to the bit.
+
+Deterministic mode is off by default; ``KFAST_DETERMINISTIC=1`` in the environment turns it
+on for the process (read at the first filter call), :func:`set_deterministic` at any time.
+Its cost is measured in BENCHMARKS.md.
+
+>>> import kfast
+>>> previous = kfast.set_deterministic(True)
+>>> kfast.deterministic()
+True
+>>> _ = kfast.set_deterministic(previous)
+"""
+
+from __future__ import annotations
+
+from kfast import _kfast
+from kfast._args import flag
+
+
+def set_deterministic(on: bool) -> bool:
+    """Turn deterministic mode on or off for the whole process; returns the previous setting.
+
+    Calls already running keep the arithmetic they started with; a ``KalmanFilter`` or
+    ``FixedLagSmoother`` keeps the arithmetic it was created with. The matrix equation
+    solvers (``solve_discrete_are`` and the like) are not affected: their large products run
+    in faer, which picks its own kernels per CPU.
+    """
+    return _kfast.set_deterministic(flag("on", on))
+
+
+def deterministic() -> bool:
+    """Whether deterministic mode is on (see :func:`set_deterministic`)."""
+    return _kfast.deterministic()
+
+
+def kernel_info() -> dict[str, object]:
+    """How the loops run on this machine: ``instruction_set`` (``"avx2+fma"``, ``"avx2"`` or
+    ``"baseline"``), ``deterministic``, ``cpu_features`` and the compiled ``fixed_sizes``."""
+    return dict(_kfast.kernel_info())

@@ -1,0 +1,156 @@
+"""Fused multiply-adds and deterministic mode (docs/conventions.md, "Arithmetic").
+
+Deterministic mode must give the same bits with every instruction set (here: the baseline
+loops against the AVX2 ones, forced with the private ``_force_kernel``); the default (fused
+where the CPU has FMA) must agree with it to rounding; and in either mode the filter, the
+batch filter, the streaming filter and the smoothers must agree with each other to the bit.
+"""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import kfast
+from modelgen import random_case
+
+SIZES = [(4, 2), (5, 2), (9, 2), (12, 3), (13, 2), (20, 3)]  # unrolled, blocked, run-time, faer
+HAS_AVX2 = "avx2" in kfast.kernel_info()["cpu_features"].split()
+HAS_FMA = HAS_AVX2 and "fma" in kfast.kernel_info()["cpu_features"].split()
+
+
+@pytest.fixture
+def kernel():
+    """Forces the loops for one test, then restores the default choice and mode."""
+    previous = kfast.deterministic()
+    yield kfast._kfast._force_kernel
+    kfast._kfast._force_kernel(None)
+    kfast.set_deterministic(previous)
+
+
+def everything(n, m, seed=1):
+    """filter, smooth, fixed-lag, filter_batch and the streaming filter on one random case."""
+    case = random_case(seed, n, m, T=30, missing="partial")
+    model = kfast.LinearGaussian(**case.model)
+    res = model.filter(case.y, case.x0, case.P0, form="standard")
+    sm = model.smooth(case.y, case.x0, case.P0)
+    lag = model.smooth_fixed_lag(case.y, case.x0, case.P0, lag=3)
+    complete = random_case(seed, n, m, T=30).y
+    batch = kfast.filter_batch(model, np.stack([complete, complete + 1.0]), case.x0, case.P0)
+    kf = kfast.KalmanFilter(model, case.x0, case.P0, form="standard")
+    xs = []
+    for y in case.y:
+        kf.update(y)
+        xs.append(kf.x.copy())
+        kf.predict()
+    return {
+        "x_filt": res.x_filt, "P_filt": res.P_filt, "loglik": res.loglik,
+        "x_smooth": sm.x_smooth, "P_smooth": sm.P_smooth, "P_lag1": sm.P_lag1,
+        "x_lag": lag.x_smooth, "P_lag": lag.P_smooth,
+        "batch_x": batch.x_filt, "batch_P": batch.P_filt, "stream_x": np.array(xs),
+    }
+
+
+@pytest.mark.skipif(not HAS_AVX2, reason="needs a CPU with AVX2 to compare with the baseline loops")
+@pytest.mark.parametrize("n, m", SIZES)
+def test_deterministic_mode_gives_the_same_bits_with_every_instruction_set(kernel, n, m):
+    kfast.set_deterministic(True)
+    kernel("baseline")
+    base = everything(n, m)
+    kernel("avx2")
+    avx2 = everything(n, m)
+    kernel(None)
+    assert kfast.kernel_info()["instruction_set"] == "avx2"
+    default = everything(n, m)
+    for name in base:
+        np.testing.assert_array_equal(avx2[name], base[name], err_msg=name)
+        np.testing.assert_array_equal(default[name], base[name], err_msg=name)
+
+
+@pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
+@pytest.mark.parametrize("n, m", SIZES)
+def test_fused_results_differ_from_deterministic_ones_only_by_rounding(kernel, n, m):
+    kfast.set_deterministic(False)
+    assert kfast.kernel_info()["instruction_set"] == "avx2+fma"
+    fused = everything(n, m)
+    kernel("baseline")
+    plain = everything(n, m)
+    differ = 0
+    for name in fused:
+        np.testing.assert_allclose(fused[name], plain[name], rtol=1e-9, atol=1e-9, err_msg=name)
+        differ += not np.array_equal(fused[name], plain[name])
+    assert differ > 0, "the fused loops computed the unfused bits: FMA is not used"
+
+
+@pytest.mark.parametrize("deterministic", [True, False])
+@pytest.mark.parametrize("n, m", [(4, 2), (9, 2), (13, 2)])
+def test_every_path_computes_the_same_bits_in_either_mode(kernel, deterministic, n, m):
+    kfast.set_deterministic(deterministic)
+    case = random_case(5, n, m, T=25)
+    model = kfast.LinearGaussian(**case.model)
+    res = model.filter(case.y, case.x0, case.P0)
+    sm = model.smooth(case.y, case.x0, case.P0)
+    batch = kfast.filter_batch(model, case.y[None], case.x0, case.P0)
+    lag = model.smooth_fixed_lag(case.y, case.x0, case.P0, lag=0)
+    online = kfast.FixedLagSmoother(model, case.x0, case.P0, lag=0)
+    kf = kfast.KalmanFilter(model, case.x0, case.P0)
+    xs, Ps, lagged, lagged_P = [], [], [], []
+    for y in case.y:
+        kf.update(y)
+        xs.append(kf.x.copy())
+        Ps.append(kf.P.copy())
+        kf.predict()
+        online.update(y)
+        lagged.append(online.x_lagged.copy())
+        lagged_P.append(online.P_lagged.copy())
+        online.predict()
+    for got in [sm.filter.x_filt, batch.x_filt[0], np.array(xs)]:
+        np.testing.assert_array_equal(got, res.x_filt)
+    for got in [sm.filter.P_filt, batch.P_filt, np.array(Ps)]:
+        np.testing.assert_array_equal(got.reshape(res.P_filt.shape), res.P_filt)
+    # The fixed-lag smoothers' estimates come from their own recursion (unfused in either
+    # mode): online equals batch.
+    np.testing.assert_array_equal(np.array(lagged), lag.x_smooth)
+    np.testing.assert_array_equal(np.array(lagged_P), lag.P_smooth)
+    assert kf.loglik == res.loglik
+
+
+@pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
+def test_a_streaming_filter_keeps_the_arithmetic_it_was_made_with(kernel):
+    case = random_case(2, 4, 2, T=20)
+    model = kfast.LinearGaussian(**case.model)
+    kfast.set_deterministic(False)
+    fused = kfast.KalmanFilter(model, case.x0, case.P0)
+    kfast.set_deterministic(True)
+    plain = kfast.KalmanFilter(model, case.x0, case.P0)
+    kfast.set_deterministic(False)
+    for y in case.y:
+        fused.step(y)
+        plain.step(y)
+    assert fused.loglik == model.loglik(case.y, case.x0, case.P0)
+    kfast.set_deterministic(True)
+    assert plain.loglik == model.loglik(case.y, case.x0, case.P0)
+
+
+def test_the_environment_variable_turns_deterministic_mode_on():
+    code = "import kfast; i = kfast.kernel_info(); print(i['deterministic'], i['instruction_set'])"
+    env = dict(os.environ, KFAST_DETERMINISTIC="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    deterministic, isa = out.stdout.split()
+    assert deterministic == "True" and isa in {"avx2", "baseline"}
+    env["KFAST_DETERMINISTIC"] = "0"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[0] == "False"
+
+
+def test_set_deterministic_returns_the_previous_setting_and_checks_its_argument(kernel):
+    kfast.set_deterministic(False)
+    assert kfast.set_deterministic(True) is False
+    assert kfast.deterministic() is True
+    assert kfast.kernel_info()["instruction_set"] != "avx2+fma"
+    with pytest.raises(kfast.KfastError, match="on: expected True or False"):
+        kfast.set_deterministic("yes")
+    with pytest.raises(ValueError, match="unknown kernel"):
+        kfast._kfast._force_kernel("avx1024")
