@@ -6,7 +6,7 @@ use std::sync::Arc;
 use super::step::LastUpdate;
 use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
-use crate::core::dims::{Dyn, Fused};
+use crate::core::dims::{with_dims, Dims, Fused};
 use crate::core::gaussian::LoglikSum;
 use crate::core::isa::{kernel, run_for, Kernel};
 use crate::core::validate::{
@@ -14,6 +14,7 @@ use crate::core::validate::{
 };
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
+use crate::linear::model::StepView;
 use crate::linear::validate::check_input_width;
 
 /// The filter one step at a time, for streams: `update(y)` then `predict(u)`, or `step`.
@@ -39,7 +40,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub fn new(model: M, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
         let lg = model.borrow();
         check_prior(lg.n_states(), x0, p0)?;
-        let ws = StreamWorkspace::new(Dyn { n: lg.n_states(), m: lg.n_obs() }, lg.n_inputs(), x0, p0);
+        let ws = StreamWorkspace::new(lg.n_states(), lg.n_obs(), lg.n_inputs(), x0, p0);
         Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: LoglikSum::default() })
     }
 
@@ -82,11 +83,8 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
             sys.r = &r_sym;
         }
         let (form, loglik) = (self.form, &mut self.loglik);
-        on_workspace!(compute &mut self.ws, |ws| {
-            ws.update(&sys, y, u, form, t)?;
-            ws.add_loglik(loglik);
-            Ok::<(), Error>(())
-        })?;
+        self.ws.0.update(&sys, y, u, form, t)?;
+        self.ws.0.add_loglik(loglik);
         self.updated = true;
         Ok(())
     }
@@ -96,12 +94,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         self.check_input(u, "B", self.model().matrices().b.is_some())?;
         let sys = self.model.borrow().at(self.t);
         let updated = self.updated;
-        on_workspace!(compute &mut self.ws, |ws| {
-            if !updated {
-                ws.skip_update();
-            }
-            ws.predict(&sys, u)
-        });
+        self.ws.0.predict(&sys, u, updated);
         self.t += 1;
         self.updated = false;
         Ok(())
@@ -141,13 +134,21 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// Current state estimate: `x̂(t|t)` after an update, `x̂(t|t−1)` otherwise.
     pub fn x(&self) -> &[f64] {
         let updated = self.updated;
-        on_workspace!(&self.ws, |ws| if updated { ws.x_filt() } else { ws.x_pred() })
+        if updated {
+            self.ws.0.x_filt()
+        } else {
+            self.ws.0.x_pred()
+        }
     }
 
     /// Covariance of [`x`](Self::x).
     pub fn p(&self) -> &[f64] {
         let updated = self.updated;
-        on_workspace!(&self.ws, |ws| if updated { ws.p_filt() } else { ws.p_pred() })
+        if updated {
+            self.ws.0.p_filt()
+        } else {
+            self.ws.0.p_pred()
+        }
     }
 
     /// The current step t (number of predicts so far).
@@ -178,12 +179,12 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// What the last update used (`h`: the step's full H), for the fixed-lag smoother.
     pub(crate) fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a> {
-        on_workspace!(&self.ws, |ws| ws.last_update(h))
+        self.ws.0.last_update(h)
     }
 
     /// The predictor gain of the last time update, for the fixed-lag smoother.
     pub(crate) fn gain_pred(&self) -> &[f64] {
-        on_workspace!(&self.ws, |ws| ws.gain_pred())
+        self.ws.0.gain_pred()
     }
 
     /// The covariance update form.
@@ -196,7 +197,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// they determine everything the filter does next (see [`resume`](Self::resume)).
     #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
     pub(crate) fn prediction(&self) -> (&[f64], &[f64]) {
-        on_workspace!(&self.ws, |ws| (ws.x_pred(), ws.p_pred()))
+        (self.ws.0.x_pred(), self.ws.0.p_pred())
     }
 
     /// The filter at step `t` before its update, from the [`prediction`](Self::prediction)
@@ -228,47 +229,109 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
                 return Err(Error::arg("t", format!("is {t}, past the {tm} steps of the model's per-step matrices")));
             }
         }
-        let ws = StreamWorkspace::new(Dyn { n, m }, k, x_pred, p_pred);
+        let ws = StreamWorkspace::new(n, m, k, x_pred, p_pred);
         Ok(KalmanFilter { model, ws, form, t, updated: false, loglik })
     }
 }
 
-/// The streaming filter's workspace, with the arithmetic of the loops chosen when it was made.
-#[derive(Debug, Clone)]
-enum StreamWorkspace {
-    Plain(Workspace<Dyn>),
-    Fused(Workspace<Fused<Dyn>>),
+/// The streaming filter's workspace: of compile-time sizes for n ≤ 12, m ≤ 4 (`with_dims!`;
+/// an update of run-time sizes at n = 4 executed ~5,000 instructions, a whole step of
+/// the compile-time loop ~600), with the arithmetic of
+/// the loops chosen when it was made (fused sizes run with FMA enabled, `run_for`). Boxed
+/// behind a trait so that the filter has one type whatever its sizes.
+trait Stream: std::fmt::Debug + Send + Sync {
+    fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()>;
+    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool);
+    fn add_loglik(&self, sum: &mut LoglikSum);
+    fn x_pred(&self) -> &[f64];
+    fn p_pred(&self) -> &[f64];
+    fn x_filt(&self) -> &[f64];
+    fn p_filt(&self) -> &[f64];
+    fn gain_pred(&self) -> &[f64];
+    fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a>;
+    fn boxed_clone(&self) -> Box<dyn Stream>;
 }
 
-impl StreamWorkspace {
-    fn new(d: Dyn, k: usize, x0: &[f64], p0: &[f64]) -> Self {
-        match kernel() {
-            Kernel::Avx2Fma => StreamWorkspace::Fused(Workspace::new(Fused(d), k, x0, p0)),
-            _ => StreamWorkspace::Plain(Workspace::new(d, k, x0, p0)),
-        }
+impl<D: Dims + std::fmt::Debug + 'static> Stream for Workspace<D>
+where
+    Workspace<D>: Sync,
+{
+    fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()> {
+        run_for::<D, _>(
+            #[inline(always)]
+            || Workspace::update(self, sys, y, u, form, t),
+        )
+    }
+    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool) {
+        run_for::<D, _>(
+            #[inline(always)]
+            || {
+                if !updated {
+                    self.skip_update();
+                }
+                Workspace::predict(self, sys, u)
+            },
+        )
+    }
+    fn add_loglik(&self, sum: &mut LoglikSum) {
+        Workspace::add_loglik(self, sum)
+    }
+    fn x_pred(&self) -> &[f64] {
+        Workspace::x_pred(self)
+    }
+    fn p_pred(&self) -> &[f64] {
+        Workspace::p_pred(self)
+    }
+    fn x_filt(&self) -> &[f64] {
+        Workspace::x_filt(self)
+    }
+    fn p_filt(&self) -> &[f64] {
+        Workspace::p_filt(self)
+    }
+    fn gain_pred(&self) -> &[f64] {
+        Workspace::gain_pred(self)
+    }
+    fn last_update<'a>(&'a self, h: &'a [f64]) -> LastUpdate<'a> {
+        Workspace::last_update(self, h)
+    }
+    fn boxed_clone(&self) -> Box<dyn Stream> {
+        Box::new(self.clone())
     }
 }
 
-/// `$body` on the workspace `$w` of either arithmetic; with `compute`, fused arithmetic runs
-/// with FMA enabled (`run_for`).
-macro_rules! on_workspace {
-    (compute $ws:expr, |$w:ident| $body:expr) => {
-        match $ws {
-            StreamWorkspace::Plain($w) => $body,
-            StreamWorkspace::Fused($w) => run_for::<Fused<Dyn>, _>(
-                #[inline(always)]
-                || $body,
-            ),
-        }
-    };
-    ($ws:expr, |$w:ident| $body:expr) => {
-        match $ws {
-            StreamWorkspace::Plain($w) => $body,
-            StreamWorkspace::Fused($w) => $body,
-        }
-    };
+#[derive(Debug)]
+struct StreamWorkspace(Box<dyn Stream>);
+
+impl Clone for StreamWorkspace {
+    fn clone(&self) -> Self {
+        StreamWorkspace(self.0.boxed_clone())
+    }
 }
-use on_workspace;
+
+impl StreamWorkspace {
+    fn new(n: usize, m: usize, k: usize, x0: &[f64], p0: &[f64]) -> Self {
+        let fused = kernel() == Kernel::Avx2Fma;
+        StreamWorkspace(with_dims!(n, m, |d| new_stream(d, fused, k, x0, p0)))
+    }
+}
+
+fn new_stream<D: Dims + std::fmt::Debug + 'static>(
+    d: D,
+    fused: bool,
+    k: usize,
+    x0: &[f64],
+    p0: &[f64],
+) -> Box<dyn Stream>
+where
+    Workspace<D>: Sync,
+    Workspace<Fused<D>>: Sync,
+{
+    if fused {
+        Box::new(Workspace::new(Fused(d), k, x0, p0))
+    } else {
+        Box::new(Workspace::new(d, k, x0, p0))
+    }
+}
 
 /// A matrix given for one step ([`KalmanFilter::update_with`]): `rows × cols` finite values.
 fn check_step_matrix(arg: &'static str, values: &[f64], rows: usize, cols: usize, t: usize) -> Result<()> {
