@@ -13,8 +13,7 @@ use crate::core::validate::{
     check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
 };
 use crate::error::{Error, Result};
-use crate::linear::model::LinearGaussian;
-use crate::linear::model::StepView;
+use crate::linear::model::{LinearGaussian, StepView};
 use crate::linear::validate::check_input_width;
 
 /// The filter one step at a time, for streams: `update(y)` then `predict(u)`, or `step`.
@@ -82,9 +81,8 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
             }
             sys.r = &r_sym;
         }
-        let (form, loglik) = (self.form, &mut self.loglik);
-        self.ws.0.update(&sys, y, u, form, t)?;
-        self.ws.0.add_loglik(loglik);
+        self.ws.0.update(&sys, y, u, self.form, t)?;
+        self.ws.0.add_loglik(&mut self.loglik);
         self.updated = true;
         Ok(())
     }
@@ -93,8 +91,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
         self.check_input(u, "B", self.model().matrices().b.is_some())?;
         let sys = self.model.borrow().at(self.t);
-        let updated = self.updated;
-        self.ws.0.predict(&sys, u, updated);
+        self.ws.0.predict(&sys, u, self.updated);
         self.t += 1;
         self.updated = false;
         Ok(())
@@ -133,8 +130,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// Current state estimate: `x̂(t|t)` after an update, `x̂(t|t−1)` otherwise.
     pub fn x(&self) -> &[f64] {
-        let updated = self.updated;
-        if updated {
+        if self.updated {
             self.ws.0.x_filt()
         } else {
             self.ws.0.x_pred()
@@ -143,8 +139,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 
     /// Covariance of [`x`](Self::x).
     pub fn p(&self) -> &[f64] {
-        let updated = self.updated;
-        if updated {
+        if self.updated {
             self.ws.0.p_filt()
         } else {
             self.ws.0.p_pred()
