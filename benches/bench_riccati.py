@@ -2,6 +2,9 @@
 
     python benches/bench_riccati.py [--quick] [--write]
 
+"kfast doubling" is `solve_discrete_are` (X, checked stabilizing; the gain is computed for the
+check and dropped), "kfast dare(eigenvalues=False)" returns the gain and the residual too, and
+"kfast dare()" adds the closed-loop eigenvalues, as control.dare returns them.
 n = 4 is the CV model (a = F', b = H', q = Q, r = R, as the Kalman DARE); n = 20 and 100 are
 seeded random stable systems with m = n/2. Contenders run interleaved (A B C A B C ...) and
 the median time per solve is reported, with every result checked against kfast's (max
@@ -28,6 +31,7 @@ import numpy as np  # noqa: E402
 import scipy.linalg as sl  # noqa: E402
 
 import kfast  # noqa: E402
+from kfast.riccati.solvers import dare  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 BEGIN = "<!-- BEGIN W6 RESULTS (benches/bench_riccati.py --write) -->"
@@ -50,6 +54,10 @@ def problems():
 def contenders():
     out = {
         "kfast doubling": lambda a, b, q, r: kfast.solve_discrete_are(a, b, q, r),
+        # X with the gain and the residual, then with the closed-loop eigenvalues too (what
+        # control.dare returns): the eigenvalues cost an eigenvalue solve that X does not.
+        "kfast dare(eigenvalues=False)": lambda a, b, q, r: dare(a, b, q, r, eigenvalues=False)["x"],
+        "kfast dare()": lambda a, b, q, r: dare(a, b, q, r)["x"],
         "kfast newton": lambda a, b, q, r: kfast.solve_discrete_are(a, b, q, r, method="newton"),
         "kfast eigen": lambda a, b, q, r: kfast.solve_discrete_are(a, b, q, r, method="eigen"),
         "scipy": lambda a, b, q, r: sl.solve_discrete_are(a, b, q, r),

@@ -36,6 +36,7 @@ def dare(
     e: Optional[NDArray[np.float64]] = None,
     s: Optional[NDArray[np.float64]] = None,
     method: DareMethod = "doubling",
+    eigenvalues: bool = True,
 ) -> dict[str, Any]: ...
 def care(
     a: NDArray[np.float64],

@@ -133,6 +133,42 @@ def test_solvers_are_fast_enough_to_be_direct():
     assert np.abs(a @ Y @ a.T - Y + np.eye(100)).max() / np.abs(Y).max() <= 1e-10
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_doubling_above_the_small_kernels_agrees_with_scipy(seed):
+    """n = 13-60: the doubling's symmetric updates as faer triangle products, the step that
+    would only confirm convergence skipped; the stabilizing check of solve_discrete_are by
+    powers of the closed loop, of dare() by its eigenvalues (which must agree with NumPy's)."""
+    rng = np.random.default_rng(400 + seed)
+    n = int(rng.integers(13, 61))
+    m = int(rng.integers(1, n // 2 + 1))
+    a = rng.standard_normal((n, n))
+    a *= rng.uniform(0.5, 1.3) / max(abs(np.linalg.eigvals(a)))
+    b = rng.standard_normal((n, m))
+    c = rng.standard_normal((n, n))
+    q, r = c @ c.T / n + 0.1 * np.eye(n), np.eye(m)
+    want = sl.solve_discrete_are(a, b, q, r)
+    x = kfast.solve_discrete_are(a, b, q, r)
+    close(x, want, max(1e-9, 1e3 * dare_residual(a, b, q, r, None, None, want)))
+    assert dare_residual(a, b, q, r, None, None, x) <= 1e-12
+    sol = dare(a, b, q, r)
+    np.testing.assert_array_equal(sol["x"], x)
+    K = sol["gain"]
+    np.testing.assert_allclose(np.sort_complex(sol["closed_loop_eigenvalues"]), np.sort_complex(np.linalg.eigvals(a - b @ K)), atol=1e-9)
+
+
+def test_stabilizing_check_falls_back_to_eigenvalues_near_the_unit_circle():
+    """A closed loop of radius ~0.999 (a nearly uncontrollable slow mode): no power up to 64
+    has norm below 1/2, so the eigenvalues decide, and the answer is still the stabilizing X."""
+    a = np.diag([0.999, 0.5, -0.3])
+    b = np.array([[1e-4], [1.0], [0.5]])
+    q, r = np.eye(3), np.eye(1)
+    want = sl.solve_discrete_are(a, b, q, r)
+    sol = dare(a, b, q, r)
+    close(sol["x"], want, 1e-9)
+    assert 0.99 < np.abs(sol["closed_loop_eigenvalues"]).max() < 1
+    close(kfast.solve_discrete_are(a, b, q, r), want, 1e-9)
+
+
 def ill_conditioned_dare(seed, n=7):
     """r = 1e-6, a with a zero column and spectral radius above 1, q of rank one: doubling
     alone leaves a relative residual of 1e-3 to 1e-7 on such problems."""

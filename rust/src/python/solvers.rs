@@ -70,19 +70,21 @@ fn parse_method(method: &str) -> PyResult<crate::DareMethod> {
     }
 }
 
-/// The solution as a dict: x, gain, closed_loop_eigenvalues (complex), residual, iterations.
+/// The solution as a dict: x, gain, closed_loop_eigenvalues (complex; only with
+/// `eigenvalues`), residual, iterations.
 fn solution_dict<'py>(
     py: Python<'py>,
     sol: crate::RiccatiSolution,
+    eigenvalues: Option<Vec<numpy::Complex64>>,
     n: usize,
     m: usize,
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     let dict = pyo3::types::PyDict::new(py);
     dict.set_item("x", to_array(py, &sol.x, &[n, n])?)?;
     dict.set_item("gain", to_array(py, &sol.gain, &[m, n])?)?;
-    let eig: Vec<numpy::Complex64> =
-        sol.closed_loop_eigenvalues.iter().map(|&(re, im)| numpy::Complex64::new(re, im)).collect();
-    dict.set_item("closed_loop_eigenvalues", numpy::PyArray1::from_vec(py, eig))?;
+    if let Some(eig) = eigenvalues {
+        dict.set_item("closed_loop_eigenvalues", numpy::PyArray1::from_vec(py, eig))?;
+    }
     dict.set_item("residual", sol.residual)?;
     dict.set_item("method", sol.method)?;
     dict.set_item("iterations", sol.iterations)?;
@@ -132,7 +134,7 @@ fn riccati_args<'a>(
 }
 
 #[pyfunction]
-#[pyo3(signature = (a, b, q, r, e=None, s=None, method="doubling"))]
+#[pyo3(signature = (a, b, q, r, e=None, s=None, method="doubling", eigenvalues=true))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn dare<'py>(
     py: Python<'py>,
@@ -143,11 +145,21 @@ pub(super) fn dare<'py>(
     e: Option<Array<'py>>,
     s: Option<Array<'py>>,
     method: &str,
+    eigenvalues: bool,
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     let method = parse_method(method)?;
     let (av, bv, qv, rv, ev, sv, n, m) = riccati_args(&a, &b, &q, &r, e.as_ref(), s.as_ref())?;
-    let sol = py.detach(|| crate::solve_discrete_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m), method))?;
-    solution_dict(py, sol, n, m)
+    let (sol, eig) = py.detach(|| {
+        let sol = crate::solve_discrete_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m), method)?;
+        let eig = if eigenvalues { Some(complex_eigenvalues(&sol)?) } else { None };
+        crate::Result::Ok((sol, eig))
+    })?;
+    solution_dict(py, sol, eig, n, m)
+}
+
+/// The closed loop's eigenvalues as NumPy complex numbers.
+fn complex_eigenvalues(sol: &crate::RiccatiSolution) -> crate::Result<Vec<numpy::Complex64>> {
+    Ok(sol.closed_loop_eigenvalues()?.iter().map(|&(re, im)| numpy::Complex64::new(re, im)).collect())
 }
 
 #[pyfunction]
@@ -163,8 +175,12 @@ pub(super) fn care<'py>(
     s: Option<Array<'py>>,
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     let (av, bv, qv, rv, ev, sv, n, m) = riccati_args(&a, &b, &q, &r, e.as_ref(), s.as_ref())?;
-    let sol = py.detach(|| crate::solve_continuous_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m)))?;
-    solution_dict(py, sol, n, m)
+    let (sol, eig) = py.detach(|| {
+        let sol = crate::solve_continuous_are(riccati_problem(av, bv, qv, rv, ev, sv, n, m))?;
+        let eig = complex_eigenvalues(&sol)?;
+        crate::Result::Ok((sol, eig))
+    })?;
+    solution_dict(py, sol, Some(eig), n, m)
 }
 
 #[pyfunction]
