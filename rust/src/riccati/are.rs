@@ -100,6 +100,11 @@ struct Problem {
 }
 
 impl Problem {
+    /// Whether s is nonzero (the products with it are skipped otherwise).
+    fn has_cross_term(&self) -> bool {
+        self.s.norm_max() > 0.0
+    }
+
     /// The gain of the reduced problem is K e⁻¹; map it back to K.
     fn unreduce_gain(&self, k: Mat<f64>) -> Mat<f64> {
         match &self.e {
@@ -372,9 +377,12 @@ const REFINE_ABOVE: f64 = 1e-12;
 
 /// K = (b'Xb + r)⁻¹(b'Xa + s') for the reduced problem.
 fn dare_gain(p: &Problem, x: &Mat<f64>) -> Option<Mat<f64>> {
-    let bt = p.b.transpose();
-    let sk = bt * x * &p.b + &p.r;
-    let rhs = bt * x * &p.a + p.s.transpose();
+    let btx = p.b.transpose() * x;
+    let sk = &btx * &p.b + &p.r;
+    let mut rhs = &btx * &p.a;
+    if p.has_cross_term() {
+        rhs += p.s.transpose();
+    }
     let k = solve(&sk, &rhs);
     all_finite(&k).then_some(k)
 }
@@ -382,8 +390,12 @@ fn dare_gain(p: &Problem, x: &Mat<f64>) -> Option<Mat<f64>> {
 /// (a − bK)' X (a − bK) + q − sK − K's' + K'rK: one Riccati step in congruence form, with
 /// `acl` = a − bK.
 fn riccati_step(p: &Problem, x: &Mat<f64>, k: &Mat<f64>, acl: &Mat<f64>) -> Mat<f64> {
-    let sk = &p.s * k;
-    sym(&(acl.transpose() * x * acl + &p.q - &sk - sk.transpose() + k.transpose() * &p.r * k))
+    let mut step = acl.transpose() * x * acl + &p.q + k.transpose() * &p.r * k;
+    if p.has_cross_term() {
+        let sk = &p.s * k;
+        step -= &sk + sk.transpose();
+    }
+    sym(&step)
 }
 
 /// Structure-preserving doubling on the problem with s removed (ex. 6.24; docs/algorithms.md, "Doubling"):
@@ -393,10 +405,13 @@ fn riccati_step(p: &Problem, x: &Mat<f64>, k: &Mat<f64>, acl: &Mat<f64>) -> Mat<
 /// still go to faer's matmul).
 fn doubling(p: &Problem, r_inv: &Mat<f64>) -> Result<(Mat<f64>, usize)> {
     let n = p.a.nrows();
-    let rs = r_inv * p.s.transpose();
-    let a0 = from_mat(&(&p.a - &p.b * &rs));
     let g0 = from_mat(&sym(&(&p.b * r_inv * p.b.transpose())));
-    let h0 = from_mat(&sym(&(&p.q - &p.s * &rs)));
+    let (a0, h0) = if p.has_cross_term() {
+        let rs = r_inv * p.s.transpose();
+        (from_mat(&(&p.a - &p.b * &rs)), from_mat(&sym(&(&p.q - &p.s * &rs))))
+    } else {
+        (from_mat(&p.a), from_mat(&p.q))
+    };
     // Compile-time sizes for small n, so that the loops unroll and the iterates stay local.
     let (x, it) = match n {
         1 => doubling_loop(Fixed::<1, 1>, &a0, &g0, &h0),
