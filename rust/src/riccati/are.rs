@@ -455,18 +455,16 @@ fn doubling_loop<D: Dims>(d: D, a0: &[f64], g0: &[f64], h0: &[f64]) -> Result<(V
         v1.copy_from_slice(a);
         lu.solve(v1, n);
         mul::<Solver>(tmp, h, v1, n, n, n);
-        transpose(at, a, n, n);
-        mul::<Solver>(next, at, tmp, n, n, n);
-        let (mut change, mut size) = (0.0f64, 0.0f64);
+        product_at_b(next, a, tmp, at, n);
+        symmetrize(next, n);
+        let (mut change, mut size, mut finite) = (0.0f64, 0.0f64, true);
         for (hi, di) in h.iter_mut().zip(next.iter()) {
             *hi += di;
             change = change.max(di.abs());
+            size = size.max(hi.abs());
+            finite &= hi.is_finite();
         }
-        symmetrize(h, n);
-        for v in h.iter() {
-            size = size.max(v.abs());
-        }
-        if !h.iter().all(|v| v.is_finite()) {
+        if !finite {
             return Err(no_solution("the doubling iteration diverged (is (a, b) stabilizable?)"));
         }
         let rel = change / size.max(1e-300);
@@ -528,9 +526,22 @@ impl<'a> Lu<'a> {
     }
 }
 
-/// Above this n the doubling's symmetric product A V₂ A' goes to faer's triangular product
-/// (half the multiply-adds of a full product); up to it the small kernels compute one triangle.
+/// Above this n the doubling's products go to faer directly: A V₂ A' as faer's triangular
+/// product (half the multiply-adds of a full one), A'(H V₁) from a transposed view; up to it
+/// the small kernels compute them (one triangle of A V₂ A').
 const FAER_TRIANGLE_ABOVE: usize = 12;
+
+/// `c[n×n] = a' · b`; `at` is scratch for a' (faer takes the transposed view as it is).
+fn product_at_b(c: &mut [f64], a: &[f64], b: &[f64], at: &mut [f64], n: usize) {
+    if n > FAER_TRIANGLE_ABOVE {
+        let a = faer::MatRef::from_row_major_slice(a, n, n).transpose();
+        let c = faer::MatMut::from_row_major_slice_mut(c, n, n);
+        let b = faer::MatRef::from_row_major_slice(b, n, n);
+        return faer::linalg::matmul::matmul(c, faer::Accum::Replace, a, b, 1.0, faer::Par::Seq);
+    }
+    transpose(at, a, n, n);
+    mul::<Solver>(c, at, b, n, n, n);
+}
 
 /// `c[n×n] = a · b'` for a product known to be symmetric.
 fn symmetric_a_bt(c: &mut [f64], a: &[f64], b: &[f64], n: usize) {
