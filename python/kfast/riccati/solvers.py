@@ -113,7 +113,7 @@ def solve_discrete_are(
     >>> bool(np.allclose(P, kfast.solve_discrete_are(F.T, H.T, np.diag([1.0, 0.0]), 1.0, method="eigen")))
     True
     """
-    return _dare(a, b, q, r, e, s, method, eigenvalues=False)["x"]
+    return dare(a, b, q, r, e=e, s=s, method=method, eigenvalues=False)["x"]
 
 
 def dare(
@@ -131,21 +131,6 @@ def dare(
     ``eigenvalues=False``, which saves an eigenvalue solve, about 40% of the time at n = 20-100),
     residual (relative), iterations and method (the method that produced x: the one asked for,
     or a fallback, "newton" or "pencil")."""
-    return _dare(a, b, q, r, e, s, method, eigenvalues)
-
-
-def _dare(
-    a: ArrayLike,
-    b: ArrayLike,
-    q: ArrayLike,
-    r: ArrayLike,
-    e: Optional[ArrayLike],
-    s: Optional[ArrayLike],
-    method: str,
-    eigenvalues: bool,
-) -> dict:
-    # Without eigenvalues the stabilizing check is usually a few squarings of the closed loop
-    # (a power with norm below 1/2 bounds its spectral radius) instead of an eigenvalue solve.
     if method not in DARE_METHODS:
         raise _kfast.KfastError(f"method: expected one of {DARE_METHODS}, got {method!r}")
     args = (_matrix("a", a), _matrix("b", b), _matrix("q", q), _matrix("r", r), _optional("e", e), _optional("s", s))
