@@ -255,7 +255,7 @@ fn dot_in_order<D: Dims>(a: &[f64], b: &[f64]) -> f64 {
 
 /// Copies the strict upper triangle of `c[n×n]` onto the lower one.
 #[inline(always)]
-fn mirror_upper(c: &mut [f64], n: usize) {
+pub(crate) fn mirror_upper(c: &mut [f64], n: usize) {
     for i in 0..n {
         for j in i + 1..n {
             c[j * n + i] = c[i * n + j];

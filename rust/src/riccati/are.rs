@@ -23,7 +23,7 @@ use std::sync::OnceLock;
 
 use faer::{c64, Mat};
 
-use crate::core::dense::{lu_in_place, lu_solve, mul, mul_bt_sym, symmetrize, transpose};
+use crate::core::dense::{lu_in_place, lu_solve, mirror_upper, mul, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::{Buf, Dims, Dyn, Fixed, Solver};
 use crate::core::mat::{checked_mat, from_mat, to_mat};
 use crate::error::{Error, Result};
@@ -74,6 +74,29 @@ pub struct RiccatiSolution {
 }
 
 impl RiccatiSolution {
+    /// The solution X of the reduced problem `p` with its gain K (mapped back through e) and
+    /// closed loop a − bK; eigenvalues not yet computed.
+    fn of(
+        p: &Problem,
+        x: &Mat<f64>,
+        k: Mat<f64>,
+        acl: &Mat<f64>,
+        residual: f64,
+        iterations: usize,
+        method: &'static str,
+    ) -> Self {
+        let gain = from_mat(&p.unreduce_gain(k));
+        Self {
+            x: from_mat(x),
+            gain,
+            closed_loop: from_mat(acl),
+            residual,
+            iterations,
+            method,
+            eigenvalues: OnceLock::new(),
+        }
+    }
+
     /// Eigenvalues (re, im) of [`closed_loop`](Self::closed_loop), computed on the first call
     /// (faer's Hessenberg QR, O(n³)) unless the stabilizing check already needed them: for
     /// the DARE a power of the closed loop with norm below 1/2 usually shows it stable for
@@ -559,11 +582,7 @@ fn upper_triangle_product(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatR
     let dst = faer::MatMut::from_row_major_slice_mut(c, n, n);
     let full = BlockStructure::Rectangular;
     matmul(dst, BlockStructure::TriangularUpper, faer::Accum::Replace, a, full, b, full, 1.0, faer::Par::Seq);
-    for i in 0..n {
-        for j in i + 1..n {
-            c[j * n + i] = c[i * n + j];
-        }
-    }
+    mirror_upper(c, n);
 }
 
 /// Riccati iteration (6.90) from X = max(1, ‖q‖) I (docs/algorithms.md, "Riccati iteration").
@@ -769,16 +788,7 @@ fn finish_dare(p: &Problem, x: Mat<f64>, iterations: usize, method: &'static str
         eigenvalues = OnceLock::from(ev);
     }
     let residual = (riccati_step(p, &x, &k, &acl) - &x).norm_max() / x.norm_max().max(1.0);
-    let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution {
-        x: from_mat(&x),
-        gain,
-        closed_loop: from_mat(&acl),
-        residual,
-        iterations,
-        method,
-        eigenvalues,
-    })
+    Ok(RiccatiSolution { eigenvalues, ..RiccatiSolution::of(p, &x, k, &acl, residual, iterations, method) })
 }
 
 /// Largest power 2^j of the closed loop tried by [`shown_stable`].
@@ -862,16 +872,8 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
     // a'X + Xa − (Xb + s) r⁻¹ (b'X + s') + q = a'X + Xa − K'rK + q
     let res = p.a.transpose() * &x + &x * &p.a - k.transpose() * &p.r * &k + &p.q;
     let residual = res.norm_max() / x.norm_max().max(1.0);
-    let gain = from_mat(&p.unreduce_gain(k));
-    Ok(RiccatiSolution {
-        x: from_mat(&x),
-        gain,
-        closed_loop: from_mat(&acl),
-        residual,
-        iterations,
-        method: "hamiltonian",
-        eigenvalues: OnceLock::from(closed_loop_eigenvalues),
-    })
+    let eigenvalues = OnceLock::from(closed_loop_eigenvalues);
+    Ok(RiccatiSolution { eigenvalues, ..RiccatiSolution::of(&p, &x, k, &acl, residual, iterations, "hamiltonian") })
 }
 
 #[cfg(test)]
