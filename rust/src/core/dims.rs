@@ -6,6 +6,8 @@
 //! arithmetic is identical either way, so results are the same bits. [`Fused`] wraps either
 //! to make the kernels round each multiply-add once (see `core::isa`).
 
+use crate::core::home::{FixedHome, Home};
+
 /// The state and output sizes (n, m) of a step, and the buffer types that hold its vectors
 /// and matrices: local arrays for [`Fixed`] sizes (which the compiler can keep in registers),
 /// heap vectors for [`Dyn`]. A [`Fixed`] buffer of m rows also holds any block of `mo ≤ m`
@@ -42,18 +44,8 @@ pub(crate) trait Dims: Copy + Send + Sync {
     /// matrix-equation solvers ([`Solver`]), not in deterministic mode.
     const FAER: bool;
 
-    /// Runs `job`, a loop over buffers of these sizes, in the unfused loops of an AVX2 CPU
-    /// ([`Kernel::Avx2`](crate::core::isa::Kernel)): run-time sizes compiled for AVX2,
-    /// compile-time sizes in the baseline loop. Both give the same bits; compiling each of
-    /// the 42 compile-time sizes a third time, for AVX2 without FMA (deterministic mode),
-    /// doubled the release build (to 12 minutes) for a loop that only deterministic mode
-    /// runs. A trait method rather than an `if` on a constant so that only the loop used is
-    /// compiled.
-    ///
-    /// # Safety
-    /// Run-time sizes: the CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R;
+    /// Where the loops of these sizes are compiled ([`core::home`](crate::core::home)).
+    type Home: Home;
 
     /// The state size n.
     fn n(self) -> usize;
@@ -91,16 +83,12 @@ impl Dims for Dyn {
     type ObsSquare = Vec<f64>;
     type StateObs = Vec<f64>;
 
+    type Home = crate::core::home::dynamic::Home;
+
     const FIXED: bool = false;
     const UNROLL: bool = false;
     const FUSED: bool = false;
     const FAER: bool = false;
-
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
-        // SAFETY: the caller checked that the CPU supports AVX2.
-        unsafe { crate::core::isa::run_avx2(job) }
-    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -116,22 +104,21 @@ impl Dims for Dyn {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Fixed<const N: usize, const M: usize>;
 
-impl<const N: usize, const M: usize> Dims for Fixed<N, M> {
+impl<const N: usize, const M: usize> Dims for Fixed<N, M>
+where
+    Self: FixedHome,
+{
     type Vector = [[f64; N]; 1];
     type Square = [[f64; N]; N];
     type Obs = [[f64; M]; 1];
     type ObsSquare = [[f64; M]; M];
     type StateObs = [[f64; M]; N];
+    type Home = <Self as FixedHome>::Home;
 
     const FIXED: bool = true;
     const UNROLL: bool = N <= 8;
     const FUSED: bool = false;
     const FAER: bool = false;
-
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
-        crate::core::isa::run_baseline(job)
-    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -154,18 +141,12 @@ impl<D: Dims> Dims for Fused<D> {
     type Obs = D::Obs;
     type ObsSquare = D::ObsSquare;
     type StateObs = D::StateObs;
+    type Home = D::Home;
 
     const FIXED: bool = D::FIXED;
     const UNROLL: bool = D::UNROLL;
     const FUSED: bool = true;
     const FAER: bool = !D::FIXED;
-
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
-        // Not called (fused sizes run in the fused loops); delegating keeps it correct.
-        // SAFETY: as the caller's.
-        unsafe { self.0.run_unfused_avx2(job) }
-    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -189,16 +170,12 @@ impl Dims for Solver {
     type ObsSquare = Vec<f64>;
     type StateObs = Vec<f64>;
 
+    type Home = crate::core::home::dynamic::Home;
+
     const FIXED: bool = false;
     const UNROLL: bool = false;
     const FUSED: bool = false;
     const FAER: bool = true;
-
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn run_unfused_avx2<R>(self, job: impl FnOnce() -> R) -> R {
-        // SAFETY: as the caller's.
-        unsafe { self.0.run_unfused_avx2(job) }
-    }
 
     #[inline(always)]
     fn n(self) -> usize {
@@ -261,7 +238,8 @@ pub(crate) const FIXED_SIZES: &str = "(1, 1), (2, 1), (4, 2), (5, 2), (9, 2) onl
 /// Why every pair up to 12 × 4: a step with run-time sizes costs 2.5–4× one with compile-time
 /// sizes (loop control and bounds checks on loops of 5–12 trips, sums that wait on each
 /// other), so any size left out is a cliff between its neighbours (issue 11 measured n = 5
-/// at 9× n = 4). Each pair costs ~6 s of release build time; for quick experiments,
+/// at 9× n = 4). Each pair costs ~25 s of CPU time in the release build (its loops compile in a
+/// codegen unit of their own, `core::home`); for quick experiments,
 /// `RUSTFLAGS="--cfg kfast_dev_sizes"` compiles only (1, 1), (2, 1), (4, 2), (5, 2) and (9, 2)
 /// (with a separate `CARGO_TARGET_DIR`, as the flag rebuilds every dependency).
 macro_rules! with_dims {

@@ -18,6 +18,9 @@
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
+use crate::core::dims::Dims;
+use crate::core::home::Home;
+
 /// The loops a call can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Kernel {
@@ -25,7 +28,7 @@ pub(crate) enum Kernel {
     Baseline,
     /// x86-64 with AVX2, separate multiplies and adds (the same bits as `Baseline`): the
     /// loops of run-time sizes compiled for AVX2, those of compile-time sizes the baseline
-    /// ones (`Dims::run_unfused_avx2`: build time).
+    /// ones (`Home::run_unfused_avx2`: build time).
     Avx2,
     /// x86-64 with AVX2 and fused multiply-adds.
     Avx2Fma,
@@ -147,88 +150,87 @@ pub fn instruction_set() -> &'static str {
 /// Evaluates `$body` with `$d` bound to the sizes `$sizes` compiled for `$kernel` (a
 /// [`Kernel`], usually [`kernel()`] read once at the start of the call) — for `Avx2Fma`
 /// wrapped in [`Fused`](crate::core::dims::Fused) — in its own function with that
-/// instruction set enabled: `run_best!(self.kernel, d, |d| self.filter_plain(d, out))`. The body must inline what it calls (the
-/// kernels are `#[inline(always)]`) so that all of it is compiled for that instruction set;
-/// each call site compiles its loop separately. The body's captures reach the loop as fields
-/// of a closure, not as arguments: the compiler no longer knows that two captured `&mut`
-/// slices do not overlap, which slowed the RTS smoother's backward pass (whose arrays are
-/// arguments) by 12%; such a loop keeps its own `#[target_feature]` methods, chosen by the
-/// same [`Kernel`].
+/// instruction set enabled, a runner of the sizes' [`Home`](crate::core::home::Home):
+/// `run_best!(self.kernel, d, |d| self.filter_plain(d, out))`. The body must inline what it
+/// calls (the kernels are `#[inline(always)]`) so that all of it is compiled for that
+/// instruction set; each call site compiles its loop separately. The body's captures reach
+/// the loop as fields of a closure, not as arguments: the compiler no longer knows that two
+/// captured `&mut` slices do not overlap, which slowed the RTS smoother's backward pass
+/// (whose arrays are arguments) by 12%; such a loop keeps its own `#[target_feature]`
+/// methods, chosen by the same [`Kernel`].
 macro_rules! run_best {
     ($kernel:expr, $sizes:expr, |$d:ident| $body:expr) => {{
-        let sizes = $sizes;
-        match $kernel {
+        let (kernel, sizes) = ($kernel, $sizes);
+        match kernel {
             #[cfg(target_arch = "x86_64")]
-            $crate::core::isa::Kernel::Avx2Fma => {
-                // SAFETY: kernel() returns Avx2Fma only on CPUs with AVX2 and FMA.
-                unsafe {
-                    $crate::core::isa::run_avx2_fma(
-                        #[inline(always)]
-                        move || {
-                            let $d = $crate::core::dims::Fused(sizes);
-                            $body
-                        },
-                    )
-                }
-            }
-            #[cfg(target_arch = "x86_64")]
-            $crate::core::isa::Kernel::Avx2 => {
-                // SAFETY: kernel() returns Avx2 only on CPUs with AVX2.
-                unsafe {
-                    $crate::core::dims::Dims::run_unfused_avx2(
-                        sizes,
-                        #[inline(always)]
-                        move || {
-                            let $d = sizes;
-                            $body
-                        },
-                    )
-                }
-            }
-            _ => $crate::core::isa::run_baseline(
-                #[inline(always)]
-                move || {
-                    let $d = sizes;
-                    $body
-                },
-            ),
+            // SAFETY: kernel() returns Avx2Fma only on CPUs with AVX2 and FMA.
+            $crate::core::isa::Kernel::Avx2Fma => unsafe {
+                $crate::core::isa::run_fused(
+                    sizes,
+                    #[inline(always)]
+                    move || {
+                        let $d = $crate::core::dims::Fused(sizes);
+                        $body
+                    },
+                )
+            },
+            // One closure for the AVX2 and the baseline loop: compile-time sizes run the same
+            // (baseline) instance for both.
+            // SAFETY: kernel() returns Avx2 only on CPUs with AVX2.
+            _ => unsafe {
+                $crate::core::isa::run_unfused(
+                    sizes,
+                    kernel,
+                    #[inline(always)]
+                    move || {
+                        let $d = sizes;
+                        $body
+                    },
+                )
+            },
         }
     }};
 }
 pub(crate) use run_best;
 
+/// `job` in the fused loop of sizes `D` (`run_best!`).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[doc(hidden)]
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn run_fused<D: Dims, R>(_sizes: D, job: impl FnOnce() -> R) -> R {
+    // SAFETY: as the caller's.
+    unsafe { D::Home::run_avx2_fma(job) }
+}
+
+/// `job` in the unfused loop of sizes `D` for `kernel` (`run_best!`).
+///
+/// # Safety
+/// `kernel` must be supported by the CPU.
+#[doc(hidden)]
+#[inline(always)]
+pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    if kernel == Kernel::Avx2 {
+        // SAFETY: as the caller's.
+        return unsafe { D::Home::run_unfused_avx2(job) };
+    }
+    let _ = kernel;
+    D::Home::run_baseline(job)
+}
+
 /// Runs `job` — work on buffers of sizes `D` outside a [`run_best!`] loop (a streaming
-/// filter's step, a rare step out of line) — with FMA enabled if `D` is
-/// [`Fused`](crate::core::dims::Fused), else as it is. Fused sizes are only made by
+/// filter's step, a rare step out of line) — in a function of its own in `D`'s home, with
+/// FMA enabled if `D` is [`Fused`](crate::core::dims::Fused). Fused sizes are only made by
 /// [`run_best!`] and the streaming filter for [`Kernel::Avx2Fma`], so on CPUs with FMA.
 #[inline(always)]
-pub(crate) fn run_for<D: crate::core::dims::Dims, R>(job: impl FnOnce() -> R) -> R {
+pub(crate) fn run_out_of_line<D: Dims, R>(job: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
     if D::FUSED {
         // SAFETY: fused sizes exist only on CPUs with AVX2 and FMA (above).
-        return unsafe { run_avx2_fma(job) };
+        return unsafe { D::Home::run_avx2_fma(job) };
     }
-    job()
-}
-
-#[doc(hidden)]
-#[inline(never)]
-pub(crate) fn run_baseline<R>(job: impl FnOnce() -> R) -> R {
-    job()
-}
-
-#[doc(hidden)]
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline(never)]
-pub(crate) unsafe fn run_avx2<R>(job: impl FnOnce() -> R) -> R {
-    job()
-}
-
-#[doc(hidden)]
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline(never)]
-pub(crate) unsafe fn run_avx2_fma<R>(job: impl FnOnce() -> R) -> R {
-    job()
+    D::Home::run_baseline(job)
 }

@@ -5,6 +5,7 @@ pub(crate) mod alloc;
 pub(crate) mod dense;
 pub(crate) mod dims;
 pub(crate) mod gaussian;
+pub(crate) mod home;
 pub mod isa;
 pub(crate) mod mat;
 pub(crate) mod schur;

@@ -345,9 +345,9 @@ impl<D: Dims> Workspace<D> {
         self.update_missing(sys, y, u, form, t)
     }
 
-    /// [`update`](Self::update) then [`predict`](Self::predict), not inlined (the rare steps
-    /// of a time loop that keeps its own workspace in registers).
-    #[inline(never)]
+    /// [`update`](Self::update) then [`predict`](Self::predict) in a function of its own (the
+    /// rare steps of a time loop that keeps its own workspace in registers).
+    #[inline(always)]
     pub fn step_out_of_line(
         &mut self,
         sys: &StepView<'_>,
@@ -356,8 +356,8 @@ impl<D: Dims> Workspace<D> {
         form: UpdateForm,
         t: usize,
     ) -> Result<()> {
-        // Not inlined, so not compiled with the loop's instruction set: fused sizes need FMA.
-        crate::core::isa::run_for::<D, _>(
+        // Not inlined into the loop, so compiled for the instruction set of its own.
+        crate::core::isa::run_out_of_line::<D, _>(
             #[inline(always)]
             || {
                 self.update(sys, y, u, form, t)?;
@@ -424,8 +424,27 @@ impl<D: Dims> Workspace<D> {
     }
 
     /// [`update`](Self::update) for a `y` with some component missing: the observed ones
-    /// update (none: the update is skipped).
+    /// update (none: the update is skipped). In a function of its own for the sizes'
+    /// instruction set: compiled alone, without FMA enabled, a fused workspace's update made
+    /// every multiply-add a call of the software `fma`.
+    #[inline(always)]
     fn update_missing(
+        &mut self,
+        sys: &StepView<'_>,
+        y: &[f64],
+        u: Option<&[f64]>,
+        form: UpdateForm,
+        t: usize,
+    ) -> Result<()> {
+        crate::core::isa::run_out_of_line::<D, _>(
+            #[inline(always)]
+            || self.update_some_observed(sys, y, u, form, t),
+        )
+    }
+
+    /// [`update_missing`](Self::update_missing), in its function.
+    #[inline(always)]
+    fn update_some_observed(
         &mut self,
         sys: &StepView<'_>,
         y: &[f64],
@@ -488,6 +507,7 @@ impl<D: Dims> Workspace<D> {
     }
 
     /// The update with the observed components only (some, not all, are missing).
+    #[inline(always)]
     fn update_partial(&mut self, sys: &StepView<'_>, form: UpdateForm, t: usize) -> Result<()> {
         let (d, n, m, mo) = (self.d, self.d.n(), self.d.m(), self.m_obs);
         let obs = &self.obs[..mo];

@@ -8,7 +8,7 @@ use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
 use crate::core::dims::{with_dims, Dims, Fused};
 use crate::core::gaussian::LoglikSum;
-use crate::core::isa::{kernel, run_for, Kernel};
+use crate::core::isa::{kernel, run_out_of_line, Kernel};
 use crate::core::validate::{
     check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
 };
@@ -232,7 +232,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 /// The streaming filter's workspace: of compile-time sizes for n ≤ 12, m ≤ 4 (`with_dims!`;
 /// an update of run-time sizes at n = 4 executed ~5,000 instructions, a whole step of
 /// the compile-time loop ~600), with the arithmetic of
-/// the loops chosen when it was made (fused sizes run with FMA enabled, `run_for`). Boxed
+/// the loops chosen when it was made (fused sizes run with FMA enabled, `run_out_of_line`). Boxed
 /// behind a trait so that the filter has one type whatever its sizes.
 trait Stream: std::fmt::Debug + Send + Sync {
     fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()>;
@@ -252,13 +252,13 @@ where
     Workspace<D>: Sync,
 {
     fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()> {
-        run_for::<D, _>(
+        run_out_of_line::<D, _>(
             #[inline(always)]
             || Workspace::update(self, sys, y, u, form, t),
         )
     }
     fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool) {
-        run_for::<D, _>(
+        run_out_of_line::<D, _>(
             #[inline(always)]
             || {
                 if !updated {

@@ -127,7 +127,7 @@ impl Backward<'_> {
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2Fma => unsafe { self.run_avx2_fma(Fused(d), x, p, p_lag1) },
             // Compile-time sizes without FMA run the baseline loop, as the filter's do
-            // (`Dims::run_unfused_avx2`): the same bits, and no third instance per size.
+            // (`Home::run_unfused_avx2`): the same bits, and no third instance per size.
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 if !D::FIXED => unsafe { self.run_avx2(d, x, p, p_lag1) },
             _ => self.run_loop(d, x, p, p_lag1),
