@@ -4,7 +4,7 @@
 //! rustc puts an instance of a generic function into the codegen unit of the module that
 //! defines it (for a method, of its self type), whatever its type arguments. A time loop is
 //! such an instance: a runner that enables an instruction set, with the loop inlined into it
-//! (`core::isa`). With one set of runners for every size, the loops of all 43 compile-time
+//! (`core::isa`). With one set of runners for every size, the loops of all 42 compile-time
 //! sizes landed in one codegen unit, which LLVM optimizes on one core: the release build
 //! took 13.5 minutes on a 2-core machine. Here every size has its own runners, methods of a
 //! type of its own module ([`Dims::Home`](crate::core::dims::Dims::Home)), so their
