@@ -438,41 +438,30 @@ impl<D: Dims> Workspace<D> {
     ) -> Result<()> {
         crate::core::isa::run_out_of_line::<D, _>(
             #[inline(always)]
-            || self.update_some_observed(sys, y, u, form, t),
+            || {
+                self.innovation(sys, y, u);
+                self.frozen = false;
+                self.measurement_covariances(sys);
+                self.m_obs = 0;
+                for (i, yi) in y.iter().enumerate() {
+                    if !yi.is_nan() {
+                        self.obs[self.m_obs] = i;
+                        self.m_obs += 1;
+                    }
+                }
+                if self.want_gain {
+                    self.gain.get_mut().fill(0.0);
+                }
+                if self.m_obs == 0 {
+                    self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
+                    self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
+                    self.update.skip();
+                    return Ok(());
+                }
+                self.update_partial(sys, form, t)?;
+                self.check_finite(t)
+            },
         )
-    }
-
-    /// [`update_missing`](Self::update_missing), in its function.
-    #[inline(always)]
-    fn update_some_observed(
-        &mut self,
-        sys: &StepView<'_>,
-        y: &[f64],
-        u: Option<&[f64]>,
-        form: UpdateForm,
-        t: usize,
-    ) -> Result<()> {
-        self.innovation(sys, y, u);
-        self.frozen = false;
-        self.measurement_covariances(sys);
-        self.m_obs = 0;
-        for (i, yi) in y.iter().enumerate() {
-            if !yi.is_nan() {
-                self.obs[self.m_obs] = i;
-                self.m_obs += 1;
-            }
-        }
-        if self.want_gain {
-            self.gain.get_mut().fill(0.0);
-        }
-        if self.m_obs == 0 {
-            self.x_filt.get_mut().copy_from_slice(self.x_pred.get());
-            self.p_filt.get_mut().copy_from_slice(self.p_pred.get());
-            self.update.skip();
-            return Ok(());
-        }
-        self.update_partial(sys, form, t)?;
-        self.check_finite(t)
     }
 
     /// The innovation of every component: e = y − H x − D u (NaN where y is missing).
