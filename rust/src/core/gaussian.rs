@@ -21,6 +21,8 @@
 
 use crate::core::dense::{ldl, ldl_solve, ldl_solve_quad, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec_add, transpose};
 use crate::core::dims::{Buf, Dims};
+#[cfg(target_arch = "x86_64")]
+use crate::core::rows4::{self, Avx2Fma, Row, Rows};
 use crate::error::{Error, Result};
 
 /// ln 2π.
@@ -264,16 +266,9 @@ impl<D: Dims> GaussianUpdate<D> {
         t: usize,
     ) -> Result<()> {
         let n = d.n();
-        let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
-        if let Err(j) = ldl::<D>(s_factor, &pred.innov_cov[..mo * mo], mo) {
-            return Err(not_positive_definite(t, j, mo));
-        }
+        self.factor(mo, pred.innov, pred.innov_cov, t)?;
         let s_factor = &self.s_factor.get()[..mo * mo];
-        self.log_det = LogDet::of_factor(s_factor, mo);
-        let s_inv_e = &mut self.s_inv_e.get_mut()[..mo];
-        s_inv_e.copy_from_slice(&pred.innov[..mo]);
-        self.quad = ldl_solve_quad::<D>(s_factor, s_inv_e, mo);
-        self.observed = mo;
+        let s_inv_e = &self.s_inv_e.get()[..mo];
 
         // K' = S⁻¹ C' by solves with the factor of S (never S⁻¹ itself).
         let cross_cov = &pred.cross_cov[..n * mo];
@@ -326,6 +321,78 @@ impl<D: Dims> GaussianUpdate<D> {
         }
         // P(t|t) is exactly symmetric already: P(t|t−1) is, and both forms add mirrored
         // symmetric products (mul_sym, mul_bt_sym), so no symmetrization here.
+        Ok(())
+    }
+
+    /// The L D L' factor of S (mo × mo), ln det S, S⁻¹ e and e' S⁻¹ e: the part of the update
+    /// that does not depend on n. Fails (naming step `t`) when S is not positive definite.
+    #[inline(always)]
+    fn factor(&mut self, mo: usize, innov: &[f64], innov_cov: &[f64], t: usize) -> Result<()> {
+        let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
+        if let Err(j) = ldl::<D>(s_factor, &innov_cov[..mo * mo], mo) {
+            return Err(not_positive_definite(t, j, mo));
+        }
+        let s_factor = &self.s_factor.get()[..mo * mo];
+        self.log_det = LogDet::of_factor(s_factor, mo);
+        let s_inv_e = &mut self.s_inv_e.get_mut()[..mo];
+        s_inv_e.copy_from_slice(&innov[..mo]);
+        self.quad = ldl_solve_quad::<D>(s_factor, s_inv_e, mo);
+        self.observed = mo;
+        Ok(())
+    }
+
+    /// [`apply`](Self::apply) for four states on AVX2 registers ([`rows4`]), every component
+    /// observed: the same operations in the same order, so the same bits. `cols` are the m
+    /// columns of `C = P H'` (`pred.cross_cov` holds the same numbers row-major).
+    #[cfg(target_arch = "x86_64")]
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn apply_rows4(
+        &mut self,
+        cpu: Avx2Fma,
+        m: usize,
+        pred: &MeasurementPrediction<'_>,
+        cols: &[Row; 4],
+        x_pred: &[f64],
+        p_pred: &[f64],
+        x_filt: &mut [f64],
+        p_filt: &mut [f64],
+        t: usize,
+    ) -> Result<()> {
+        self.factor(m, pred.innov, pred.innov_cov, t)?;
+        let f = &self.s_factor.get()[..m * m];
+        // K' = S⁻¹ C': its rows are C's columns.
+        let mut gain_rows = *cols;
+        rows4::ldl_solve(f, &mut gain_rows, m);
+        let gain_t = self.gain_t.get_mut();
+        for (i, row) in gain_rows.iter().enumerate().take(m) {
+            rows4::store(&mut gain_t[4 * i..], *row);
+        }
+
+        // x̂(t|t) = x̂(t|t−1) + C S⁻¹ e
+        let s_inv_e = &self.s_inv_e.get()[..m];
+        rows4::store(x_filt, rows4::add(rows4::load(cpu, x_pred), rows4::mul_vec_cols(cols, s_inv_e, m)));
+
+        let p = Rows::load(cpu, p_pred);
+        let p_filt_rows = match pred.joseph {
+            // P − C K'
+            None => p.sub(&rows4::mul_cols(cols, &gain_rows, m).mirror_upper()),
+            Some((h, r)) => {
+                // A = I − K H (K's columns are the rows of K')
+                let h_rows: [Row; 4] = rows4::each(
+                    #[inline(always)]
+                    |l| rows4::load_row_or_zero(cpu, h, l, m),
+                );
+                let a = rows4::mul_cols(&gain_rows, &h_rows, m).identity_minus();
+                // A P = P − K C'
+                let ap = p.sub(&rows4::mul_cols(&gain_rows, cols, m));
+                let apa = rows4::mul_rows(&ap, &a.transpose()).mirror_upper();
+                // K R K' = K (R K')
+                let r_gain_t = rows4::mul_mem(r, m, &gain_rows, m);
+                apa.add(&rows4::mul_cols(&gain_rows, &r_gain_t.0, m).mirror_upper())
+            }
+        };
+        p_filt_rows.store(p_filt);
         Ok(())
     }
 

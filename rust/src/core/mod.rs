@@ -8,6 +8,8 @@ pub(crate) mod gaussian;
 pub(crate) mod home;
 pub mod isa;
 pub(crate) mod mat;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod rows4;
 pub(crate) mod schur;
 pub(crate) mod series;
 pub(crate) mod validate;

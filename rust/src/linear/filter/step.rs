@@ -24,6 +24,8 @@
 use crate::core::dense::{ldl_solve, mul, mul_bt, mul_bt_sym, mul_sym, mul_vec, mul_vec_add, symmetrize, transpose};
 use crate::core::dims::{Buf, Dims};
 use crate::core::gaussian::{GaussianUpdate, LogDet, LoglikSum, MeasurementPrediction};
+#[cfg(target_arch = "x86_64")]
+use crate::core::rows4::{self, Avx2Fma, Rows};
 use crate::error::{Error, Result};
 use crate::linear::model::StepView;
 
@@ -388,6 +390,10 @@ impl<D: Dims> Workspace<D> {
             self.update.apply_mean(d, self.innov.get(), self.pht.get(), self.x_pred.get(), self.x_filt.get_mut());
             return self.check_finite(t);
         }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = rows4::for_sizes(d) {
+            return self.update_observed_rows4(cpu, sys, form, t);
+        }
         self.measurement_covariances(sys);
         self.m_obs = m;
         let pred = MeasurementPrediction {
@@ -400,6 +406,39 @@ impl<D: Dims> Workspace<D> {
             d,
             m,
             &pred,
+            self.x_pred.get(),
+            self.p_pred.get(),
+            self.x_filt.get_mut(),
+            self.p_filt.get_mut(),
+            t,
+        )?;
+        if self.want_gain {
+            transpose(self.gain.get_mut(), self.update.gain_t(m, n), m, n);
+        }
+        self.check_finite(t)
+    }
+
+    /// [`update_observed`](Self::update_observed) for four states on AVX2 registers
+    /// (`core::rows4`): the same operations in the same order, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn update_observed_rows4(&mut self, cpu: Avx2Fma, sys: &StepView<'_>, form: UpdateForm, t: usize) -> Result<()> {
+        let (n, m) = (self.d.n(), self.d.m());
+        let cols = rows4::mul_bt_cols(&Rows::load(cpu, self.p_pred.get()), sys.h, m);
+        rows4::store_cols(self.pht.get_mut(), &cols, m);
+        self.compute_innovation_cov(sys);
+        self.m_obs = m;
+        let pred = MeasurementPrediction {
+            innov: self.innov.get(),
+            cross_cov: self.pht.get(),
+            innov_cov: self.s_full.get(),
+            joseph: (form == UpdateForm::Joseph).then_some((sys.h, sys.r)),
+        };
+        self.update.apply_rows4(
+            cpu,
+            m,
+            &pred,
+            &cols,
             self.x_pred.get(),
             self.p_pred.get(),
             self.x_filt.get_mut(),
@@ -486,6 +525,14 @@ impl<D: Dims> Workspace<D> {
         let (n, m) = (self.d.n(), self.d.m());
         let pht = self.pht.get_mut();
         mul_bt::<D>(pht, self.p_pred.get(), sys.h, n, n, m);
+        self.compute_innovation_cov(sys);
+    }
+
+    /// S = H (P H') + R for all components, from `pht`.
+    #[inline(always)]
+    fn compute_innovation_cov(&mut self, sys: &StepView<'_>) {
+        let (n, m) = (self.d.n(), self.d.m());
+        let pht = self.pht.get();
         // H (P H') computed as one triangle and mirrored, plus the symmetric R: S is exactly
         // symmetric without a symmetrization on the step's latency chain.
         let s = self.s_full.get_mut();
@@ -579,7 +626,7 @@ impl<D: Dims> Workspace<D> {
         debug_assert!(features.freezing || self.converge_tol.is_none());
         let cross_cov = sys.n.filter(|_| features.cross_cov);
         let x_pred = self.x_pred.get_mut();
-        mul_vec::<D>(x_pred, sys.f, self.x_filt.get(), n, n);
+        mul_vec_f::<D>(self.d, x_pred, sys.f, self.x_filt.get());
         if let (Some(b), Some(u)) = (sys.b, u) {
             mul_vec_add::<D>(x_pred, b, u, n, self.k);
         }
@@ -592,14 +639,7 @@ impl<D: Dims> Workspace<D> {
         if features.freezing && self.converge_tol.is_some() {
             self.p_prev.get_mut().copy_from_slice(self.p_pred.get());
         }
-        let fp = self.fp.get_mut();
-        mul::<D>(fp, sys.f, self.p_filt.get(), n, n, n);
-        let p_pred = self.p_pred.get_mut();
-        mul_bt_sym::<D>(p_pred, fp, sys.f, n, n);
-        // `[..n * n]`: a loop over the compile-time n (Q is n × n).
-        for (p, q) in p_pred.iter_mut().zip(&sys.q[..n * n]) {
-            *p += q;
-        }
+        self.covariance_time_update(sys);
         if self.want_gain_pred || cross_cov.is_some() {
             if mo == m {
                 self.predictor_gain(m, sys.f, cross_cov);
@@ -615,6 +655,27 @@ impl<D: Dims> Workspace<D> {
             let change = p_pred.iter().zip(p_prev).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             let size = p_pred.iter().fold(1.0f64, |s, v| s.max(v.abs()));
             self.frozen = change <= tol * size;
+        }
+    }
+
+    /// P(t+1|t) = F P(t|t) F' + Q (the N terms apart).
+    #[inline(always)]
+    fn covariance_time_update(&mut self, sys: &StepView<'_>) {
+        let n = self.d.n();
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = rows4::for_sizes(self.d) {
+            let fp = rows4::mul_mem(sys.f, n, &Rows::load(cpu, self.p_filt.get()).0, n);
+            let f_cols = Rows::load(cpu, sys.f).transpose();
+            let p_pred = rows4::mul_rows(&fp, &f_cols).mirror_upper().add(&Rows::load(cpu, sys.q));
+            return p_pred.store(self.p_pred.get_mut());
+        }
+        let fp = self.fp.get_mut();
+        mul::<D>(fp, sys.f, self.p_filt.get(), n, n, n);
+        let p_pred = self.p_pred.get_mut();
+        mul_bt_sym::<D>(p_pred, fp, sys.f, n, n);
+        // `[..n * n]`: a loop over the compile-time n (Q is n × n).
+        for (p, q) in p_pred.iter_mut().zip(&sys.q[..n * n]) {
+            *p += q;
         }
     }
 
@@ -668,6 +729,17 @@ impl<D: Dims> Workspace<D> {
             }
         }
     }
+}
+
+/// `x[n] = F x_filt`, on AVX2 registers for four states (`core::rows4`; the same bits).
+#[inline(always)]
+fn mul_vec_f<D: Dims>(d: D, x: &mut [f64], f: &[f64], x_filt: &[f64]) {
+    let n = d.n();
+    #[cfg(target_arch = "x86_64")]
+    if let Some(cpu) = rows4::for_sizes(d) {
+        return rows4::store(x, rows4::mul_vec_cols(&Rows::load(cpu, f).transpose().0, x_filt, n));
+    }
+    mul_vec::<D>(x, f, x_filt, n, n);
 }
 
 /// The error for a state estimate that left float64's range at step `t` (out of line: the

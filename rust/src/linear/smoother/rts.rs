@@ -19,6 +19,8 @@ use crate::core::dims::with_dims;
 use crate::core::dims::Fused;
 use crate::core::dims::{Buf, Dims};
 use crate::core::isa::{kernel, Kernel};
+#[cfg(target_arch = "x86_64")]
+use crate::core::rows4::{self, Avx2Fma, Rows};
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
 
@@ -184,6 +186,10 @@ impl Backward<'_> {
         let (n, m) = (d.n(), d.m());
         let nn = n * n;
         let sys = self.model.at(t);
+        #[cfg(target_arch = "x86_64")]
+        if let (Some(cpu), None) = (rows4::for_sizes(d), sys.n) {
+            return self.step_rows4(cpu, d, t, x, p, p_lag1, sc);
+        }
         let (p_cur, p_next) = p[t * nn..(t + 2) * nn].split_at_mut(nn);
         let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
         // Jt = J' = P(t+1|t)⁻¹ (F P(t|t) − N K')
@@ -196,7 +202,7 @@ impl Backward<'_> {
                 *j -= d;
             }
         }
-        solve_psd::<D>(p_pred, jt, sc.factor.get_mut(), n).map_err(|e| Error::arg("P_pred", e).at_step(Some(t + 1)))?;
+        solve_psd::<D>(p_pred, jt, sc.factor.get_mut(), n).map_err(|e| pseudo_inverse_failed(e, t))?;
         let (j, jt) = (sc.j.get_mut(), sc.jt.get());
         transpose(j, jt, n, n);
         // x̂(t|T−1) = x̂(t|t) + J (x̂(t+1|T−1) − x̂(t+1|t))
@@ -224,6 +230,61 @@ impl Backward<'_> {
         }
         Ok(())
     }
+
+    /// [`step`](Self::step) for four states on AVX2 registers (`core::rows4`), a model
+    /// without N: the same operations in the same order, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn step_rows4<D: Dims>(
+        &self,
+        cpu: Avx2Fma,
+        d: D,
+        t: usize,
+        x: &mut [f64],
+        p: &mut [f64],
+        p_lag1: Option<&mut [f64]>,
+        sc: &mut Scratch<D>,
+    ) -> Result<()> {
+        let (n, nn) = (d.n(), d.n() * d.n());
+        let f = self.model.at(t).f;
+        let (p_cur, p_next) = p[t * nn..(t + 2) * nn].split_at_mut(nn);
+        let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
+        // J' = P(t+1|t)⁻¹ F P(t|t)
+        let p_filt = Rows::load(cpu, p_cur);
+        let mut jt = rows4::mul_mem(f, n, &p_filt.0, n);
+        if factor_psd::<D>(p_pred, sc.factor.get_mut(), n) {
+            rows4::ldl_solve(sc.factor.get(), &mut jt.0, n);
+        } else {
+            let buf = sc.jt.get_mut();
+            jt.store(buf);
+            solve_pseudo_inverse(p_pred, buf, n).map_err(|e| pseudo_inverse_failed(e, t))?;
+            jt = Rows::load(cpu, buf);
+        }
+        // x̂(t|T−1) = x̂(t|t) + J (x̂(t+1|T−1) − x̂(t+1|t)); J's columns are the rows of J'.
+        let (x_cur, x_next) = x[t * n..(t + 2) * n].split_at_mut(n);
+        let dx = sc.dx.get_mut();
+        for ((d, xs), xp) in dx.iter_mut().zip(x_next.iter()).zip(&self.priors.x_pred[(t + 1) * n..(t + 2) * n]) {
+            *d = xs - xp;
+        }
+        let x_smooth = rows4::add(rows4::load(cpu, x_cur), rows4::mul_vec_cols(&jt.0, dx, n));
+        rows4::store(x_cur, x_smooth);
+        // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'
+        let dp = Rows::load(cpu, p_next).sub(&Rows::load(cpu, p_pred));
+        let j_dp_jt = rows4::mul_rows(&jt.transpose(), &rows4::mul_rows(&dp, &jt)).mirror_upper();
+        p_filt.add(&j_dp_jt).symmetrize().store(p_cur);
+        // P(t+1, t | T−1) = P(t+1|T−1) J'
+        if let Some(l) = p_lag1 {
+            rows4::mul_rows(&Rows::load(cpu, p_next), &jt).store(&mut l[(t + 1) * nn..(t + 2) * nn]);
+        }
+        Ok(())
+    }
+}
+
+/// The error for a smoother gain at step `t` that could not be computed.
+#[cold]
+fn pseudo_inverse_failed(problem: String, t: usize) -> Error {
+    Error::arg("P_pred", problem).at_step(Some(t + 1))
 }
 
 /// Solves `A X = B` in place for the symmetric PSD `a[n×n]` and `b[n×n]`: by an L D L'
@@ -235,11 +296,18 @@ impl Backward<'_> {
 /// with R = 0, whose P(1|0) computed in Joseph form had a pivot of 2e-32).
 #[inline(always)]
 fn solve_psd<D: Dims>(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
-    if ldl::<D>(factor, a, n).is_ok() && pivots_above_rounding(a, factor, n) {
+    if factor_psd::<D>(a, factor, n) {
         ldl_solve::<D>(factor, b, n, n);
         return Ok(());
     }
     solve_pseudo_inverse(a, b, n)
+}
+
+/// The L D L' factor of the PSD `a[n×n]` into `factor`, and whether it solves systems with
+/// `a` ([`solve_psd`]: else the pseudo-inverse does).
+#[inline(always)]
+fn factor_psd<D: Dims>(a: &[f64], factor: &mut [f64], n: usize) -> bool {
+    ldl::<D>(factor, a, n).is_ok() && pivots_above_rounding(a, factor, n)
 }
 
 /// Whether every pivot `d_j` of the [`ldl`] factor `factor` of the PSD `a[n×n]` exceeds
@@ -291,7 +359,52 @@ fn solve_pseudo_inverse(a: &[f64], b: &mut [f64], n: usize) -> std::result::Resu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::dims::Dyn;
+    use crate::core::dims::{Dyn, Fixed};
+    use crate::linear::model::{Matrices, StepMatrix};
+    use crate::{filter, Series, UpdateForm};
+
+    #[cfg(target_arch = "x86_64")]
+    /// The backward pass gives the same bits with compile-time sizes (for n = 4 with fused
+    /// multiply-adds: `core::rows4`) as with run-time sizes, in either arithmetic.
+    #[test]
+    fn compile_time_and_run_time_sizes_smooth_to_the_same_bits() {
+        let c = |r, c, v: Vec<f64>| StepMatrix::constant(r, c, v).unwrap();
+        let dt = 0.1;
+        let f = vec![1.0, 0.0, dt, 0.0, 0.0, 1.0, 0.0, dt, 0.1, 0.0, 0.9, 0.05, 0.0, 0.0, -0.05, 1.0];
+        let q = vec![0.02, 0.0, 0.01, 0.0, 0.0, 0.02, 0.0, 0.01, 0.01, 0.0, 0.1, 0.0, 0.0, 0.01, 0.0, 0.1];
+        let h = vec![1.0, 0.2, 0.0, 0.0, 0.0, 1.0, 0.0, 0.3];
+        let model =
+            LinearGaussian::new(Matrices::new(c(4, 4, f), c(2, 4, h), c(4, 4, q), c(2, 2, vec![0.5, 0.1, 0.1, 0.4])))
+                .unwrap();
+        let y: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
+        let res = filter(
+            &model,
+            Series::new("y", &y, 30, 2).unwrap(),
+            None,
+            &[0.0; 4],
+            &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            UpdateForm::Joseph,
+        )
+        .unwrap();
+        let priors = Priors { x_pred: &res.x_pred, p_pred: &res.p_pred, gain: &[] };
+        let pass = Backward { model: &model, priors };
+        let smooth = |fixed: bool, fused: bool| {
+            let (mut x, mut p, mut lag) = (res.x_filt.clone(), res.p_filt.clone(), vec![0.0; res.p_filt.len()]);
+            let dyn_sizes = Dyn { n: 4, m: 2 };
+            match (fixed, fused) {
+                (true, true) => pass.run_loop(Fused(Fixed::<4, 2>), &mut x, &mut p, Some(&mut lag)),
+                (true, false) => pass.run_loop(Fixed::<4, 2>, &mut x, &mut p, Some(&mut lag)),
+                (false, true) => pass.run_loop(Fused(dyn_sizes), &mut x, &mut p, Some(&mut lag)),
+                (false, false) => pass.run_loop(dyn_sizes, &mut x, &mut p, Some(&mut lag)),
+            }
+            .unwrap();
+            (x, p, lag)
+        };
+        let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        for fused in [false, fma] {
+            assert_eq!(smooth(true, fused), smooth(false, fused), "fused: {fused}");
+        }
+    }
 
     /// [[3, 1], [1, 1/3]] is singular; with 1/3 rounded up by one ulp its second L D L' pivot
     /// is 5.6e-17, at rounding level, which the factorization refuses. The right-hand side lies
