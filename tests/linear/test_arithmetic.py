@@ -86,9 +86,9 @@ def test_fused_results_differ_from_deterministic_ones_only_by_rounding(kernel, n
 
 @pytest.mark.parametrize("form", ["joseph", "standard"])
 @pytest.mark.parametrize("deterministic", [True, False])
-@pytest.mark.parametrize("n, m", [(4, 1), (4, 2), (9, 2), (13, 2)])
+@pytest.mark.parametrize("n, m", [(3, 2), (4, 1), (4, 2), (9, 2), (13, 2)])
 def test_every_path_computes_the_same_bits_in_either_mode(kernel, deterministic, n, m, form):
-    # n = 4 has kernels of its own on AVX2 + FMA (core/rows4.rs); filter_batch's shared
+    # n = 3, 4 have kernels of their own on AVX2 + FMA (core/rows4.rs); filter_batch's shared
     # covariance recursion runs with run-time sizes, without them.
     kfast.set_deterministic(deterministic)
     case = random_case(5, n, m, T=25)

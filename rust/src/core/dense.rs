@@ -17,7 +17,8 @@
 //! those kernels must be inlined into a loop compiled with FMA (`core::isa`), or `mul_add`
 //! becomes a call into the runtime library. Products of run-time sizes above 12 go to faer
 //! only with fused sizes: faer picks its kernels (and their rounding) per CPU, which
-//! deterministic mode rules out.
+//! deterministic mode rules out. With fused compile-time sizes and n = 3 or 4 the filter and
+//! smoother steps use `core::rows4` instead, which computes the same sums on AVX2 registers.
 
 use crate::core::dims::{Dims, Dyn};
 

@@ -341,7 +341,7 @@ impl<D: Dims> GaussianUpdate<D> {
         Ok(())
     }
 
-    /// [`apply`](Self::apply) for four states on AVX2 registers ([`rows4`]), every component
+    /// [`apply`](Self::apply) for three or four states on AVX2 registers ([`rows4`]), every component
     /// observed: the same operations in the same order, so the same bits. `cols` are the m
     /// columns of `C = P H'` (`pred.cross_cov` holds the same numbers row-major).
     #[cfg(target_arch = "x86_64")]
@@ -366,12 +366,12 @@ impl<D: Dims> GaussianUpdate<D> {
         rows4::ldl_solve(f, &mut gain_rows, m);
         let gain_t = self.gain_t.get_mut();
         for (i, row) in gain_rows.iter().enumerate().take(m) {
-            rows4::store(&mut gain_t[4 * i..], *row);
+            rows4::store(cpu, &mut gain_t[cpu.n() * i..], *row);
         }
 
         // x̂(t|t) = x̂(t|t−1) + C S⁻¹ e
         let s_inv_e = &self.s_inv_e.get()[..m];
-        rows4::store(x_filt, rows4::add(rows4::load(cpu, x_pred), rows4::mul_vec_cols(cols, s_inv_e, m)));
+        rows4::store(cpu, x_filt, rows4::add(rows4::load(cpu, x_pred), rows4::mul_vec_cols(cols, s_inv_e, m)));
 
         let p = Rows::load(cpu, p_pred);
         let p_filt_rows = match pred.joseph {
@@ -386,13 +386,13 @@ impl<D: Dims> GaussianUpdate<D> {
                 let a = rows4::mul_cols(&gain_rows, &h_rows, m).identity_minus();
                 // A P = P − K C'
                 let ap = p.sub(&rows4::mul_cols(&gain_rows, cols, m));
-                let apa = rows4::mul_rows(&ap, &a.transpose()).mirror_upper();
+                let apa = rows4::mul_rows(cpu, &ap, &a.transpose()).mirror_upper();
                 // K R K' = K (R K')
                 let r_gain_t = rows4::mul_mem(r, m, &gain_rows, m);
                 apa.add(&rows4::mul_cols(&gain_rows, &r_gain_t.0, m).mirror_upper())
             }
         };
-        p_filt_rows.store(p_filt);
+        p_filt_rows.store(cpu, p_filt);
         Ok(())
     }
 

@@ -1,16 +1,17 @@
-//! The products of a four-state filter step on AVX2 + FMA registers, one 256-bit vector per
-//! row of a 4 × 4 matrix.
+//! The products of a three- or four-state filter step on AVX2 + FMA registers, one 256-bit
+//! vector per row of the n × n matrices (n = 3: the fourth lane and row are padding, never
+//! stored, and never enter a sum: every sum runs over l < n).
 //!
 //! The portable kernels of [`super::dense`] leave the vectorizing to the compiler, which at
 //! n = 4 turns most of the step into scalar multiply-adds and stack traffic (callgrind, CV
 //! model, standard form: ~640 instructions a step, 180 of them stack moves; see
-//! docs/decisions.md, "Four-state steps on AVX2 registers (issue #11, 2026-12-03, Zen 3)").
+//! docs/decisions.md, "Three- and four-state steps on AVX2 registers (issue #11, 2026-12-03, Zen 3)").
 //! These kernels compute the same sums in the same order as the fused kernels there — each
-//! entry from its first term, one fused multiply-add per further term — so a four-state
-//! workspace gives the same bits with them as without, on every path (`filter_batch`'s
+//! entry from its first term, one fused multiply-add per further term — so a workspace gives
+//! the same bits with them as without, on every path (`filter_batch`'s
 //! shared recursion runs with run-time sizes, without them).
 //!
-//! They serve only [`Fused`](crate::core::dims::Fused) compile-time sizes with n = 4
+//! They serve only [`Fused`](crate::core::dims::Fused) compile-time sizes with n = 3 or 4
 //! ([`for_sizes`]): fused sizes exist only on CPUs with AVX2 and FMA and run inside a loop
 //! compiled with both (`core::isa`), into which these `#[inline(always)]` functions and the
 //! intrinsics they call are inlined. Vectors are made only by functions that take an
@@ -21,21 +22,31 @@ use std::arch::x86_64::*;
 
 use crate::core::dims::Dims;
 
-/// Proof that the CPU has AVX2 and FMA.
+/// Proof that the CPU has AVX2 and FMA, and the state size n (3 or 4) of the kernels.
 #[derive(Clone, Copy)]
-pub(crate) struct Avx2Fma(());
-
-/// `Some` when these kernels serve the sizes `d`: four states, compile-time sizes, fused
-/// (so the CPU has AVX2 and FMA: `core::isa` makes fused sizes only then).
-#[inline(always)]
-pub(crate) fn for_sizes<D: Dims>(d: D) -> Option<Avx2Fma> {
-    (D::FUSED && D::FIXED && d.n() == 4).then_some(Avx2Fma(()))
+pub(crate) struct Avx2Fma {
+    n: usize,
 }
 
-/// Four numbers: a row of a 4 × 4 matrix, or a column.
+impl Avx2Fma {
+    /// The state size n.
+    #[inline(always)]
+    pub fn n(self) -> usize {
+        self.n
+    }
+}
+
+/// `Some` when these kernels serve the sizes `d`: three or four states, compile-time sizes,
+/// fused (so the CPU has AVX2 and FMA: `core::isa` makes fused sizes only then).
+#[inline(always)]
+pub(crate) fn for_sizes<D: Dims>(d: D) -> Option<Avx2Fma> {
+    (D::FUSED && D::FIXED && matches!(d.n(), 3 | 4)).then_some(Avx2Fma { n: d.n() })
+}
+
+/// Four numbers: a row of an n × n matrix, or a column (padded to four).
 pub(crate) type Row = __m256d;
 
-/// A 4 × 4 matrix as its rows.
+/// An n × n matrix as its rows (padded to 4 × 4 with zeros).
 #[derive(Clone, Copy)]
 pub(crate) struct Rows(pub [Row; 4]);
 
@@ -52,22 +63,22 @@ pub(crate) fn each<T>(f: impl Fn(usize) -> T) -> [T; 4] {
 // through slices of checked length.
 
 impl Rows {
-    /// The row-major 4 × 4 matrix `a[..16]`.
+    /// The row-major n × n matrix `a[..n²]`.
     #[inline(always)]
     pub fn load(cpu: Avx2Fma, a: &[f64]) -> Rows {
-        let a = &a[..16];
+        let n = cpu.n;
         Rows(each(
             #[inline(always)]
-            |i| load(cpu, &a[4 * i..]),
+            |i| load_row_or_zero(cpu, a, i, n),
         ))
     }
 
-    /// Writes the matrix row-major into `c[..16]`.
+    /// Writes the matrix row-major into `c[..n²]`.
     #[inline(always)]
-    pub fn store(&self, c: &mut [f64]) {
-        let c = &mut c[..16];
-        for (i, row) in self.0.iter().enumerate() {
-            store(&mut c[4 * i..], *row);
+    pub fn store(&self, cpu: Avx2Fma, c: &mut [f64]) {
+        let n = cpu.n;
+        for (i, row) in self.0.iter().enumerate().take(n) {
+            store(cpu, &mut c[n * i..], *row);
         }
     }
 
@@ -161,25 +172,37 @@ impl Rows {
     }
 }
 
-/// `a[..4]` as a vector.
+/// `a[..n]` as a vector (n = 3: the fourth lane zero).
 #[inline(always)]
-pub(crate) fn load(_: Avx2Fma, a: &[f64]) -> Row {
-    let a = &a[..4];
-    unsafe { _mm256_loadu_pd(a.as_ptr()) }
+pub(crate) fn load(cpu: Avx2Fma, a: &[f64]) -> Row {
+    let a = &a[..cpu.n];
+    unsafe {
+        if cpu.n == 4 {
+            return _mm256_loadu_pd(a.as_ptr());
+        }
+        let low = _mm_loadu_pd(a.as_ptr());
+        _mm256_insertf128_pd(_mm256_castpd128_pd256(low), _mm_load_sd(&a[2]), 1)
+    }
 }
 
-/// Writes `v` into `c[..4]`.
+/// Writes the first n lanes of `v` into `c[..n]`.
 #[inline(always)]
-pub(crate) fn store(c: &mut [f64], v: Row) {
-    let c = &mut c[..4];
-    unsafe { _mm256_storeu_pd(c.as_mut_ptr(), v) }
+pub(crate) fn store(cpu: Avx2Fma, c: &mut [f64], v: Row) {
+    let c = &mut c[..cpu.n];
+    unsafe {
+        if cpu.n == 4 {
+            return _mm256_storeu_pd(c.as_mut_ptr(), v);
+        }
+        _mm_storeu_pd(c.as_mut_ptr(), _mm256_castpd256_pd128(v));
+        _mm_store_sd(&mut c[2], _mm256_extractf128_pd(v, 1));
+    }
 }
 
-/// Row `l` of `a[rows×4]`, zero for `l ≥ rows`.
+/// Row `l` of `a[rows×n]`, zero for `l ≥ rows`.
 #[inline(always)]
 pub(crate) fn load_row_or_zero(cpu: Avx2Fma, a: &[f64], l: usize, rows: usize) -> Row {
     if l < rows {
-        load(cpu, &a[4 * l..])
+        load(cpu, &a[cpu.n * l..])
     } else {
         unsafe { _mm256_setzero_pd() }
     }
@@ -279,14 +302,14 @@ pub(crate) fn mul_mem(a: &[f64], rows: usize, b: &[Row; 4], k: usize) -> Rows {
     ))
 }
 
-/// `a · b` for the rows `a` (4 × 4) and the rows `b` (4 × 4): row `i` is `Σ_l a_il b_l`.
+/// `a · b` for the n × n rows `a` and `b`: row `i` is `Σ_{l<n} a_il b_l`.
 #[inline(always)]
-pub(crate) fn mul_rows(a: &Rows, b: &Rows) -> Rows {
+pub(crate) fn mul_rows(cpu: Avx2Fma, a: &Rows, b: &Rows) -> Rows {
     Rows(each(
         #[inline(always)]
         |i| {
             sum_in_order(
-                4,
+                cpu.n,
                 #[inline(always)]
                 |l| lane(a.0[i], l),
                 #[inline(always)]
@@ -314,33 +337,34 @@ pub(crate) fn mul_cols(a_cols: &[Row; 4], b: &[Row; 4], k: usize) -> Rows {
     ))
 }
 
-/// The columns `C_j = P h_j'` of `C = P H'` (4 × m) for the 4 × 4 `P` and `h[m×4]`
+/// The columns `C_j = P h_j'` of `C = P H'` (n × m) for the n × n `P` and `h[m×n]`
 /// (`dense::mul_bt`: each entry `Σ_l P_il h_jl` in order).
 #[inline(always)]
-pub(crate) fn mul_bt_cols(p: &Rows, h: &[f64], m: usize) -> [Row; 4] {
-    let h = &h[..4 * m];
+pub(crate) fn mul_bt_cols(cpu: Avx2Fma, p: &Rows, h: &[f64], m: usize) -> [Row; 4] {
+    let n = cpu.n;
+    let h = &h[..n * m];
     let p_cols = p.transpose();
     let mut cols = [splat(0.0); 4];
     for (j, col) in cols.iter_mut().enumerate().take(m) {
         *col = sum_in_order(
-            4,
+            n,
             #[inline(always)]
             |l| p_cols.0[l],
             #[inline(always)]
-            |l| splat(h[j * 4 + l]),
+            |l| splat(h[j * n + l]),
         );
     }
     cols
 }
 
-/// Writes the 4 × m matrix with columns `cols` row-major into `c[..4m]`.
+/// Writes the n × m matrix with columns `cols` row-major into `c[..nm]`.
 #[inline(always)]
-pub(crate) fn store_cols(c: &mut [f64], cols: &[Row; 4], m: usize) {
+pub(crate) fn store_cols(cpu: Avx2Fma, c: &mut [f64], cols: &[Row; 4], m: usize) {
     let rows = Rows(*cols).transpose();
-    let c = &mut c[..4 * m];
+    let c = &mut c[..cpu.n * m];
     let mut row = [0.0; 4];
-    for i in 0..4 {
-        store(&mut row, rows.0[i]);
+    for i in 0..cpu.n {
+        unsafe { _mm256_storeu_pd(row.as_mut_ptr(), rows.0[i]) };
         c[i * m..(i + 1) * m].copy_from_slice(&row[..m]);
     }
 }
@@ -376,7 +400,8 @@ mod tests {
     use crate::core::dense::{mul, mul_bt, mul_bt_sym, mul_sym, mul_vec};
     use crate::core::dims::{Fixed, Fused};
 
-    type D42 = Fused<Fixed<4, 2>>;
+    /// Fused unrolled kernels (the sizes are arguments; `D` sets only how they run).
+    type D = Fused<Fixed<4, 2>>;
 
     fn numbers(seed: u64, len: usize) -> Vec<f64> {
         let mut state = seed;
@@ -388,54 +413,56 @@ mod tests {
             .collect()
     }
 
-    fn stored(r: &Rows) -> Vec<f64> {
-        let mut c = vec![0.0; 16];
-        r.store(&mut c);
-        c
-    }
-
-    /// Every kernel gives the bits of the fused `core::dense` product it replaces (here the
-    /// dense ones call the runtime's `fma`, which rounds the same).
+    /// Every kernel gives the bits of the fused `core::dense` product it replaces, for n = 3
+    /// and 4 (here the dense ones call the runtime's `fma`, which rounds the same).
     #[test]
     fn the_kernels_give_the_bits_of_the_fused_dense_products() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
             eprintln!("no AVX2 + FMA: nothing to compare");
             return;
         }
-        let cpu = Avx2Fma(());
-        for seed in 1..20 {
-            let (a, b) = (numbers(seed, 16), numbers(seed + 100, 16));
-            let h = numbers(seed + 200, 8); // 2 × 4
-            let x = numbers(seed + 300, 4);
-            let (ra, rb) = (Rows::load(cpu, &a), Rows::load(cpu, &b));
+        for n in [3, 4] {
+            let cpu = Avx2Fma { n };
+            let nn = n * n;
+            let stored = |r: &Rows| {
+                let mut c = vec![0.0; nn];
+                r.store(cpu, &mut c);
+                c
+            };
+            for seed in 1..20 {
+                let (a, b) = (numbers(seed, nn), numbers(seed + 100, nn));
+                let h = numbers(seed + 200, 2 * n);
+                let x = numbers(seed + 300, n);
+                let (ra, rb) = (Rows::load(cpu, &a), Rows::load(cpu, &b));
 
-            let mut want = vec![0.0; 16];
-            mul::<D42>(&mut want, &a, &b, 4, 4, 4);
-            assert_eq!(stored(&mul_rows(&ra, &rb)), want);
-            assert_eq!(stored(&mul_mem(&a, 4, &rb.0, 4)), want);
+                let mut want = vec![0.0; nn];
+                mul::<D>(&mut want, &a, &b, n, n, n);
+                assert_eq!(stored(&mul_rows(cpu, &ra, &rb)), want, "n = {n}");
+                assert_eq!(stored(&mul_mem(&a, n, &rb.0, n)), want);
 
-            mul_bt_sym::<D42>(&mut want, &a, &b, 4, 4);
-            assert_eq!(stored(&mul_rows(&ra, &rb.transpose()).mirror_upper()), want);
+                mul_bt_sym::<D>(&mut want, &a, &b, n, n);
+                assert_eq!(stored(&mul_rows(cpu, &ra, &rb.transpose()).mirror_upper()), want);
 
-            let cols = mul_bt_cols(&ra, &h, 2);
-            let mut pht = vec![0.0; 8];
-            store_cols(&mut pht, &cols, 2);
-            let mut want_pht = vec![0.0; 8];
-            mul_bt::<D42>(&mut want_pht, &a, &h, 4, 4, 2);
-            assert_eq!(pht, want_pht);
+                let cols = mul_bt_cols(cpu, &ra, &h, 2);
+                let mut pht = vec![0.0; 2 * n];
+                store_cols(cpu, &mut pht, &cols, 2);
+                let mut want_pht = vec![0.0; 2 * n];
+                mul_bt::<D>(&mut want_pht, &a, &h, n, n, 2);
+                assert_eq!(pht, want_pht);
 
-            let gain_rows = [load(cpu, &b), load(cpu, &b[4..]), splat(0.0), splat(0.0)];
-            mul_sym::<D42>(&mut want, &pht, &b[..8], 4, 2);
-            assert_eq!(stored(&mul_cols(&cols, &gain_rows, 2).mirror_upper()), want);
+                let gain_rows = [load(cpu, &b), load(cpu, &b[n..]), splat(0.0), splat(0.0)];
+                mul_sym::<D>(&mut want, &pht, &b[..2 * n], n, 2);
+                assert_eq!(stored(&mul_cols(&cols, &gain_rows, 2).mirror_upper()), want);
 
-            let mut want_x = vec![0.0; 4];
-            mul_vec::<D42>(&mut want_x, &a, &x, 4, 4);
-            let mut got_x = vec![0.0; 4];
-            store(&mut got_x, mul_vec_cols(&ra.transpose().0, &x, 4));
-            assert_eq!(got_x, want_x);
-            mul_vec::<D42>(&mut want_x, &pht, &x[..2], 4, 2);
-            store(&mut got_x, mul_vec_cols(&cols, &x[..2], 2));
-            assert_eq!(got_x, want_x);
+                let mut want_x = vec![0.0; n];
+                mul_vec::<D>(&mut want_x, &a, &x, n, n);
+                let mut got_x = vec![0.0; n];
+                store(cpu, &mut got_x, mul_vec_cols(&ra.transpose().0, &x, n));
+                assert_eq!(got_x, want_x);
+                mul_vec::<D>(&mut want_x, &pht, &x[..2], n, 2);
+                store(cpu, &mut got_x, mul_vec_cols(&cols, &x[..2], 2));
+                assert_eq!(got_x, want_x);
+            }
         }
     }
 }

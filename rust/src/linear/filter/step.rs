@@ -418,14 +418,14 @@ impl<D: Dims> Workspace<D> {
         self.check_finite(t)
     }
 
-    /// [`update_observed`](Self::update_observed) for four states on AVX2 registers
+    /// [`update_observed`](Self::update_observed) for three or four states on AVX2 registers
     /// (`core::rows4`): the same operations in the same order, so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn update_observed_rows4(&mut self, cpu: Avx2Fma, sys: &StepView<'_>, form: UpdateForm, t: usize) -> Result<()> {
         let (n, m) = (self.d.n(), self.d.m());
-        let cols = rows4::mul_bt_cols(&Rows::load(cpu, self.p_pred.get()), sys.h, m);
-        rows4::store_cols(self.pht.get_mut(), &cols, m);
+        let cols = rows4::mul_bt_cols(cpu, &Rows::load(cpu, self.p_pred.get()), sys.h, m);
+        rows4::store_cols(cpu, self.pht.get_mut(), &cols, m);
         self.compute_innovation_cov(sys);
         self.m_obs = m;
         let pred = MeasurementPrediction {
@@ -666,8 +666,8 @@ impl<D: Dims> Workspace<D> {
         if let Some(cpu) = rows4::for_sizes(self.d) {
             let fp = rows4::mul_mem(sys.f, n, &Rows::load(cpu, self.p_filt.get()).0, n);
             let f_cols = Rows::load(cpu, sys.f).transpose();
-            let p_pred = rows4::mul_rows(&fp, &f_cols).mirror_upper().add(&Rows::load(cpu, sys.q));
-            return p_pred.store(self.p_pred.get_mut());
+            let p_pred = rows4::mul_rows(cpu, &fp, &f_cols).mirror_upper().add(&Rows::load(cpu, sys.q));
+            return p_pred.store(cpu, self.p_pred.get_mut());
         }
         let fp = self.fp.get_mut();
         mul::<D>(fp, sys.f, self.p_filt.get(), n, n, n);
@@ -731,13 +731,13 @@ impl<D: Dims> Workspace<D> {
     }
 }
 
-/// `x[n] = F x_filt`, on AVX2 registers for four states (`core::rows4`; the same bits).
+/// `x[n] = F x_filt`, on AVX2 registers for three or four states (`core::rows4`; the same bits).
 #[inline(always)]
 fn mul_vec_f<D: Dims>(d: D, x: &mut [f64], f: &[f64], x_filt: &[f64]) {
     let n = d.n();
     #[cfg(target_arch = "x86_64")]
     if let Some(cpu) = rows4::for_sizes(d) {
-        return rows4::store(x, rows4::mul_vec_cols(&Rows::load(cpu, f).transpose().0, x_filt, n));
+        return rows4::store(cpu, x, rows4::mul_vec_cols(&Rows::load(cpu, f).transpose().0, x_filt, n));
     }
     mul_vec::<D>(x, f, x_filt, n, n);
 }

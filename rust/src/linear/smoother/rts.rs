@@ -231,7 +231,7 @@ impl Backward<'_> {
         Ok(())
     }
 
-    /// [`step`](Self::step) for four states on AVX2 registers (`core::rows4`), a model
+    /// [`step`](Self::step) for three or four states on AVX2 registers (`core::rows4`), a model
     /// without N: the same operations in the same order, so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[allow(clippy::too_many_arguments)]
@@ -257,7 +257,7 @@ impl Backward<'_> {
             rows4::ldl_solve(sc.factor.get(), &mut jt.0, n);
         } else {
             let buf = sc.jt.get_mut();
-            jt.store(buf);
+            jt.store(cpu, buf);
             solve_pseudo_inverse(p_pred, buf, n).map_err(|e| pseudo_inverse_failed(e, t))?;
             jt = Rows::load(cpu, buf);
         }
@@ -268,14 +268,14 @@ impl Backward<'_> {
             *d = xs - xp;
         }
         let x_smooth = rows4::add(rows4::load(cpu, x_cur), rows4::mul_vec_cols(&jt.0, dx, n));
-        rows4::store(x_cur, x_smooth);
+        rows4::store(cpu, x_cur, x_smooth);
         // P(t|T−1) = P(t|t) + J (P(t+1|T−1) − P(t+1|t)) J'
         let dp = Rows::load(cpu, p_next).sub(&Rows::load(cpu, p_pred));
-        let j_dp_jt = rows4::mul_rows(&jt.transpose(), &rows4::mul_rows(&dp, &jt)).mirror_upper();
-        p_filt.add(&j_dp_jt).symmetrize().store(p_cur);
+        let j_dp_jt = rows4::mul_rows(cpu, &jt.transpose(), &rows4::mul_rows(cpu, &dp, &jt)).mirror_upper();
+        p_filt.add(&j_dp_jt).symmetrize().store(cpu, p_cur);
         // P(t+1, t | T−1) = P(t+1|T−1) J'
         if let Some(l) = p_lag1 {
-            rows4::mul_rows(&Rows::load(cpu, p_next), &jt).store(&mut l[(t + 1) * nn..(t + 2) * nn]);
+            rows4::mul_rows(cpu, &Rows::load(cpu, p_next), &jt).store(cpu, &mut l[(t + 1) * nn..(t + 2) * nn]);
         }
         Ok(())
     }
@@ -364,46 +364,46 @@ mod tests {
     use crate::{filter, Series, UpdateForm};
 
     #[cfg(target_arch = "x86_64")]
-    /// The backward pass gives the same bits with compile-time sizes (for n = 4 with fused
-    /// multiply-adds: `core::rows4`) as with run-time sizes, in either arithmetic.
+    /// The backward pass gives the same bits with compile-time sizes (for n = 3 and 4 with
+    /// fused multiply-adds: `core::rows4`) as with run-time sizes, in either arithmetic.
     #[test]
     fn compile_time_and_run_time_sizes_smooth_to_the_same_bits() {
-        let c = |r, c, v: Vec<f64>| StepMatrix::constant(r, c, v).unwrap();
-        let dt = 0.1;
-        let f = vec![1.0, 0.0, dt, 0.0, 0.0, 1.0, 0.0, dt, 0.1, 0.0, 0.9, 0.05, 0.0, 0.0, -0.05, 1.0];
-        let q = vec![0.02, 0.0, 0.01, 0.0, 0.0, 0.02, 0.0, 0.01, 0.01, 0.0, 0.1, 0.0, 0.0, 0.01, 0.0, 0.1];
-        let h = vec![1.0, 0.2, 0.0, 0.0, 0.0, 1.0, 0.0, 0.3];
-        let model =
-            LinearGaussian::new(Matrices::new(c(4, 4, f), c(2, 4, h), c(4, 4, q), c(2, 2, vec![0.5, 0.1, 0.1, 0.4])))
+        fn check<const N: usize>(fixed: Fixed<N, 2>)
+        where
+            Fixed<N, 2>: Dims,
+        {
+            let c = |r, c, v: Vec<f64>| StepMatrix::constant(r, c, v).unwrap();
+            let entry = |i: usize, j: usize, diag: f64, off: f64| if i == j { diag } else { off / (1 + i + j) as f64 };
+            let square = |diag: f64, off: f64| (0..N * N).map(|k| entry(k / N, k % N, diag, off)).collect::<Vec<_>>();
+            let (f, q) = (square(0.95, 0.1), square(0.05, 0.01));
+            let h = (0..2 * N).map(|k| if k % (N + 1) == 0 { 1.0 } else { 0.2 }).collect();
+            let r = vec![0.5, 0.1, 0.1, 0.4];
+            let model = LinearGaussian::new(Matrices::new(c(N, N, f), c(2, N, h), c(N, N, q), c(2, 2, r))).unwrap();
+            let y: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
+            let p0 = square(1.0, 0.0);
+            let series = Series::new("y", &y, 30, 2).unwrap();
+            let res = filter(&model, series, None, &[0.0; N], &p0, UpdateForm::Joseph).unwrap();
+            let priors = Priors { x_pred: &res.x_pred, p_pred: &res.p_pred, gain: &[] };
+            let pass = Backward { model: &model, priors };
+            let smooth = |fixed_sizes: bool, fused: bool| {
+                let (mut x, mut p, mut lag) = (res.x_filt.clone(), res.p_filt.clone(), vec![0.0; res.p_filt.len()]);
+                let dyn_sizes = Dyn { n: N, m: 2 };
+                match (fixed_sizes, fused) {
+                    (true, true) => pass.run_loop(Fused(fixed), &mut x, &mut p, Some(&mut lag)),
+                    (true, false) => pass.run_loop(fixed, &mut x, &mut p, Some(&mut lag)),
+                    (false, true) => pass.run_loop(Fused(dyn_sizes), &mut x, &mut p, Some(&mut lag)),
+                    (false, false) => pass.run_loop(dyn_sizes, &mut x, &mut p, Some(&mut lag)),
+                }
                 .unwrap();
-        let y: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
-        let res = filter(
-            &model,
-            Series::new("y", &y, 30, 2).unwrap(),
-            None,
-            &[0.0; 4],
-            &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
-            UpdateForm::Joseph,
-        )
-        .unwrap();
-        let priors = Priors { x_pred: &res.x_pred, p_pred: &res.p_pred, gain: &[] };
-        let pass = Backward { model: &model, priors };
-        let smooth = |fixed: bool, fused: bool| {
-            let (mut x, mut p, mut lag) = (res.x_filt.clone(), res.p_filt.clone(), vec![0.0; res.p_filt.len()]);
-            let dyn_sizes = Dyn { n: 4, m: 2 };
-            match (fixed, fused) {
-                (true, true) => pass.run_loop(Fused(Fixed::<4, 2>), &mut x, &mut p, Some(&mut lag)),
-                (true, false) => pass.run_loop(Fixed::<4, 2>, &mut x, &mut p, Some(&mut lag)),
-                (false, true) => pass.run_loop(Fused(dyn_sizes), &mut x, &mut p, Some(&mut lag)),
-                (false, false) => pass.run_loop(dyn_sizes, &mut x, &mut p, Some(&mut lag)),
+                (x, p, lag)
+            };
+            let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+            for fused in [false, fma] {
+                assert_eq!(smooth(true, fused), smooth(false, fused), "n = {N}, fused: {fused}");
             }
-            .unwrap();
-            (x, p, lag)
-        };
-        let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
-        for fused in [false, fma] {
-            assert_eq!(smooth(true, fused), smooth(false, fused), "fused: {fused}");
         }
+        check(Fixed::<3, 2>);
+        check(Fixed::<4, 2>);
     }
 
     /// [[3, 1], [1, 1/3]] is singular; with 1/3 rounded up by one ulp its second L D L' pivot
