@@ -8,8 +8,8 @@
 //! docs/decisions.md, "Three- and four-state steps on AVX2 registers (issue #11, 2026-12-03, Zen 3)").
 //! These kernels compute the same sums in the same order as the fused kernels there — each
 //! entry from its first term, one fused multiply-add per further term — so a workspace gives
-//! the same bits with them as without, on every path (`filter_batch`'s
-//! shared recursion runs with run-time sizes, without them).
+//! the same bits with them as without, on every path (`filter_batch`'s shared recursion runs
+//! with run-time sizes, without them).
 //!
 //! They serve only [`Fused`](crate::core::dims::Fused) compile-time sizes with n = 3 or 4
 //! ([`for_sizes`]): fused sizes exist only on CPUs with AVX2 and FMA and run inside a loop
@@ -254,7 +254,7 @@ fn splat(x: f64) -> Row {
 
 /// Four copies of lane `l` of `v`.
 #[inline(always)]
-pub(crate) fn lane(v: Row, l: usize) -> Row {
+fn lane(v: Row, l: usize) -> Row {
     unsafe {
         match l {
             0 => _mm256_permute4x64_pd(v, 0x00),
