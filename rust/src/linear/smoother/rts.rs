@@ -188,7 +188,7 @@ impl Backward<'_> {
         let sys = self.model.at(t);
         #[cfg(target_arch = "x86_64")]
         if let (Some(cpu), None) = (rows4::for_sizes(d), sys.n) {
-            return self.step_rows4(cpu, d, t, x, p, p_lag1, sc);
+            return self.step_rows4(cpu, sys.f, t, x, p, p_lag1, sc);
         }
         let (p_cur, p_next) = p[t * nn..(t + 2) * nn].split_at_mut(nn);
         let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
@@ -232,22 +232,21 @@ impl Backward<'_> {
     }
 
     /// [`step`](Self::step) for three or four states on AVX2 registers (`core::rows4`), a model
-    /// without N: the same operations in the same order, so the same bits.
+    /// without N (`f` is the step's F): the same operations in the same order, so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn step_rows4<D: Dims>(
         &self,
         cpu: Avx2Fma,
-        d: D,
+        f: &[f64],
         t: usize,
         x: &mut [f64],
         p: &mut [f64],
         p_lag1: Option<&mut [f64]>,
         sc: &mut Scratch<D>,
     ) -> Result<()> {
-        let (n, nn) = (d.n(), d.n() * d.n());
-        let f = self.model.at(t).f;
+        let (n, nn) = (cpu.n(), cpu.n() * cpu.n());
         let (p_cur, p_next) = p[t * nn..(t + 2) * nn].split_at_mut(nn);
         let p_pred = &self.priors.p_pred[(t + 1) * nn..(t + 2) * nn];
         // J' = P(t+1|t)⁻¹ F P(t|t)
