@@ -36,11 +36,30 @@ impl Avx2Fma {
     }
 }
 
-/// `Some` when these kernels serve the sizes `d`: three or four states, compile-time sizes,
-/// fused (so the CPU has AVX2 and FMA: `core::isa` makes fused sizes only then).
+/// `Some` when these kernels serve the sizes `d`: four states, or three where
+/// [`three_states_pay`]; compile-time sizes, fused (so the CPU has AVX2 and FMA: `core::isa`
+/// makes fused sizes only then). Either way the results are the same bits.
 #[inline(always)]
 pub(crate) fn for_sizes<D: Dims>(d: D) -> Option<Avx2Fma> {
-    (D::FUSED && D::FIXED && matches!(d.n(), 3 | 4)).then_some(Avx2Fma { n: d.n() })
+    let n = d.n();
+    (D::FUSED && D::FIXED && (n == 4 || (n == 3 && three_states_pay()))).then_some(Avx2Fma { n })
+}
+
+/// Whether the three-state kernels are faster than the portable loops on this CPU, which is
+/// a matter of measurement (docs/decisions.md, "Three- and four-state steps on AVX2
+/// registers"): on an AMD Zen 3 they are 4–6% faster, and without them W8's (4, 3) ran 13%
+/// below (3, 3); on an Intel Xeon (Sapphire Rapids, AVX-512) they are 10–40% slower at
+/// m = 1, 2, 3, and (3, 1) ran 15% above (4, 1). So AMD CPUs use them and others do not.
+/// Read once per process.
+#[inline(always)]
+fn three_states_pay() -> bool {
+    static AMD: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *AMD.get_or_init(|| {
+        // CPUID leaf 0: the vendor string in EBX, EDX, ECX.
+        let id = __cpuid(0);
+        [id.ebx, id.edx, id.ecx]
+            == [u32::from_le_bytes(*b"Auth"), u32::from_le_bytes(*b"enti"), u32::from_le_bytes(*b"cAMD")]
+    })
 }
 
 /// Four numbers: a row of an n × n matrix, or a column (padded to four).
