@@ -1,7 +1,7 @@
 """pytest configuration shared by every test folder.
 
-Layout: ``tests/linear``, ``tests/riccati``, ``tests/sampling`` and ``tests/models`` mirror the
-source tree; cross-cutting tests (textbook cases, peers, reference agreement, properties, the
+Layout: ``tests/linear``, ``tests/riccati``, ``tests/sampling``, ``tests/models`` and
+``tests/nonlinear`` mirror the source tree; cross-cutting tests (textbook cases, peers, reference agreement, properties, the
 README, typing, the CLI) stay in ``tests/``.
 
 Imports: with pytest's default ``prepend`` import mode, the directory of this conftest (it has

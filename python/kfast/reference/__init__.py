@@ -51,3 +51,7 @@ __all__ += [
     "qd_first_order",
     "van_loan",
 ]
+
+from kfast.reference import nonlinear  # noqa: E402  (EKF, UKF and their smoothers: kfast.reference.nonlinear)
+
+__all__ += ["nonlinear"]
