@@ -31,6 +31,10 @@ USER_CODE = textwrap.dedent(
     ss = m.steady_state(method="eigen")
     b = kfast.filter_batch(m, np.zeros((4, 3, 2)), np.zeros(2), np.eye(2), form="standard")
     e = m.em(np.zeros((3, 2)), np.zeros(2), np.eye(2), n_iter=1, fit=("Q", "R"))
+    ct = kfast.models.coordinated_turn(0.1, q=1.0, sigma_omega=0.05)
+    nm = kfast.NonlinearModel(ct, kfast.models.range_bearing((0.0, 0.0)), np.eye(5), np.eye(2), n=5)
+    nr: kfast.FilterResult = nm.ekf(np.zeros((3, 2)), np.ones(5), np.eye(5), iterations=2, iteration="gauss-newton")
+    ur: kfast.FilterResult = nm.ukf(np.zeros((3, 2)), np.ones(5), np.eye(5), points=kfast.sigma.cubature(), outputs="x_filt")
     """
 )
 
@@ -45,6 +49,7 @@ WRONG_CODE = {
     "output_name": ('m.filter(np.zeros((3, 2)), np.zeros(2), np.eye(2), outputs=("x_flit",))', "x_flit"),
     "em_parameter": ('m.em(np.zeros((3, 2)), np.zeros(2), np.eye(2), fit=("F", "G"))', "Literal['G']"),
     "streaming_model": ("kfast.KalmanFilter(np.eye(2), np.zeros(2), np.eye(2))", "KalmanFilter"),
+    "ekf_iteration": ('kfast.NonlinearModel(lambda X, t, u: X, lambda X, t, u: X, np.eye(2), np.eye(2), n=2).ekf(np.zeros((3, 2)), np.zeros(2), np.eye(2), iteration="newton")', "newton"),
     "positional_R": ("kfast.KalmanFilter(m, np.zeros(2), np.eye(2)).update([0.0, 1.0], None, np.eye(2))", "update"),
 }
 

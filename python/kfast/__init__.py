@@ -32,6 +32,7 @@ from kfast.linear.model import (
 )
 
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
+from kfast.nonlinear.model import NonlinearModel
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -44,10 +45,13 @@ from kfast.riccati.solvers import (
 )
 
 from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
+from kfast import sigma  # noqa: E402  (sigma-point sets: kfast.sigma.merwe, julier, cubature)
 
 __all__ = [
     "models",
+    "sigma",
     "LinearGaussian",
+    "NonlinearModel",
     "FilterResult",
     "SmootherResult",
     "FixedLagResult",

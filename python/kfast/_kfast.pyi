@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kfast.linear.model import LinearGaussian as _Model
-from kfast._typing import DareMethod, Form
+from kfast._typing import DareMethod, Form, Iteration
 
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the
 # package converts array-likes first); the streaming objects take array-likes themselves.
@@ -150,6 +150,43 @@ class LinearGaussian:
         v: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+class NonlinearModel:
+    """The compiled nonlinear model: f and h as Python callables f(X, t, u) over a batch X of
+    shape (k, n), or built-ins given as (kind, params); kfast.NonlinearModel wraps it."""
+
+    def __init__(
+        self,
+        f: Any,
+        h: Any,
+        Q: NDArray[np.float64],
+        R: NDArray[np.float64],
+        n: int,
+        m: int,
+        angles: list[int],
+        jac_f: Optional[Any] = None,
+        jac_h: Optional[Any] = None,
+    ) -> None: ...
+    def ekf(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        outputs: list[str],
+        u: Optional[NDArray[np.float64]] = None,
+        form: Form = "joseph",
+        iterations: int = 0,
+        iteration: Iteration = "book",
+    ) -> dict[str, Any]: ...
+    def ukf(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        outputs: list[str],
+        points: tuple[str, float, float, float],
+        u: Optional[NDArray[np.float64]] = None,
+    ) -> dict[str, Any]: ...
 
 class KalmanFilter:
     """Streaming Kalman filter from the prior (x0, P0) = x(0|-1), P(0|-1).

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 from typing import Iterable, Literal, Union
 
-__all__ = ["Form", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
+__all__ = ["Form", "Iteration", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
 
 Form = Literal["joseph", "standard"]
 """The covariance measurement update: Joseph's (I-KH)P(I-KH)' + KRK' or the standard P - KSK'."""
+
+Iteration = Literal["book", "gauss-newton"]
+"""How the iterated EKF relinearizes: Söderström's (9.12)-(9.17) or Gauss-Newton (Bell & Cathey)."""
 
 DareMethod = Literal["doubling", "newton", "iteration", "eigen"]
 """The algorithms of ``solve_discrete_are``."""

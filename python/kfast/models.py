@@ -41,9 +41,12 @@ from kfast._args import index
 from kfast._arrays import as_float64, finite_vector
 from kfast._numbers import integer_lags, powers_applied
 from kfast.linear.model import LinearGaussian
+from kfast.nonlinear.model import BuiltinFunction
 from kfast.sampling import discretize
 
 __all__ = [
+    "coordinated_turn",
+    "range_bearing",
     "random_constant",
     "random_walk",
     "random_ramp",
@@ -836,3 +839,58 @@ def ar_autocovariance(lags, coeffs, noise_var, r=0.0):
 # Lags up to this are computed by the recursion r(k) = -sum_i a_i r(k-i) (an array of that
 # length), beyond it by powers of the companion matrix.
 _AR_RECURSION_LIMIT = 100_000
+
+
+# ----------------------------------------------------------------------------------------------
+# Built-in nonlinear models (Rust): f and h for kfast.NonlinearModel
+# ----------------------------------------------------------------------------------------------
+
+
+def coordinated_turn(dt, q=1.0, sigma_omega=0.0) -> BuiltinFunction:
+    """The coordinated turn with unknown turn rate, state (px, py, vx, vy, omega), as the
+    transition f of a :class:`kfast.NonlinearModel` (n = 5), computed in Rust.
+
+    The exact discretization for a constant turn rate omega over ``dt`` (Bar-Shalom, Li &
+    Kirubarajan 2001; Li & Jilkov 2003)::
+
+        px' = px + s vx - c vy      vx' = C vx - S vy      omega' = omega
+        py' = py + c vx + s vy      vy' = S vx + C vy
+        s = sin(omega dt)/omega,  c = (1 - cos(omega dt))/omega,  C = cos(omega dt),  S = sin(omega dt)
+
+    evaluated through sinc so that omega -> 0 (the constant-velocity model) is exact, with its
+    Jacobian in closed form (a Taylor series for |omega dt| < 0.02). ``.Q`` is the process
+    noise that goes with it: white-noise acceleration of intensity ``q`` per axis,
+    q [[dt^3/3, dt^2/2], [dt^2/2, dt]] on (p, v), and sigma_omega^2 dt on omega (the rotation
+    of the noise by the turn is ignored, a standard approximation).
+
+    >>> ct = kfast.models.coordinated_turn(dt=0.1, q=1.0, sigma_omega=0.05)
+    >>> ct.Q.shape
+    (5, 5)
+    """
+    h = _positive("dt", dt)
+    q = _nonneg("q", q)
+    s2 = _nonneg("sigma_omega", sigma_omega) ** 2
+    Q = np.zeros((5, 5))
+    per_axis = q * np.array([[h**3 / 3, h**2 / 2], [h**2 / 2, h]])
+    for axis in (0, 1):
+        Q[np.ix_([axis, axis + 2], [axis, axis + 2])] = per_axis
+    Q[4, 4] = s2 * h
+    Q.setflags(write=False)
+    return BuiltinFunction("coordinated_turn", (h,), Q=Q)
+
+
+def range_bearing(sensor=(0.0, 0.0)) -> BuiltinFunction:
+    """A range-bearing sensor at ``sensor`` = (sx, sy) as the measurement h of a
+    :class:`kfast.NonlinearModel`, computed in Rust: the state's first two components are the
+    position p, and y = (|p - s|, atan2(py - sy, px - sx)) -- the bearing is the mathematical
+    angle from the x axis, counter-clockwise, in (-pi, pi]. It declares the bearing an angle
+    (``angles=(1,)``), so innovations are wrapped. Its Jacobian is undefined at the sensor
+    (range 0): the filters then raise naming the step.
+
+    >>> kfast.models.range_bearing(sensor=(1.0, -2.0)).params
+    (1.0, -2.0)
+    """
+    s = finite_vector("sensor", sensor, "(the sensor position)")
+    if s.shape != (2,):
+        raise KfastError(f"sensor: expected two coordinates (sx, sy), got shape {s.shape}")
+    return BuiltinFunction("range_bearing", (float(s[0]), float(s[1])), dim_out=2, angles=(1,))

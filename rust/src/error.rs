@@ -28,6 +28,17 @@ pub enum Error {
         /// Details.
         problem: String,
     },
+    /// A state covariance computed during a run stopped being positive definite, so the next
+    /// operation that needs its square root (the sigma points of an unscented filter) cannot
+    /// run.
+    NotPositiveDefinite {
+        /// Which covariance (`"P(t|t-1)"`, `"P(t|t)"`).
+        what: &'static str,
+        /// Time step.
+        step: usize,
+        /// Details and the remedy.
+        problem: String,
+    },
     /// A Riccati equation has no stabilizing solution (or none could be found): the method
     /// never returns a non-stabilizing fixed point instead.
     NoStabilizingSolution {
@@ -66,6 +77,9 @@ impl fmt::Display for Error {
             }
             Error::NoStabilizingSolution { problem } => {
                 write!(f, "no stabilizing solution of the Riccati equation: {problem}")
+            }
+            Error::NotPositiveDefinite { what, step, problem } => {
+                write!(f, "{what} at step {step} is not positive definite: {problem}")
             }
             Error::InnovationCovariance { step, problem } => {
                 write!(f, "innovation covariance S = H P H' + R at step {step} cannot be factorized: {problem}")

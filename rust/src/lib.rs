@@ -38,6 +38,9 @@
 //!   [`solve_continuous_lyapunov`], [`stationary_covariance`].
 //! - [`expm`], [`discretize`] / [`discretize_steps`] → [`Discretized`]: Van Loan sampling of
 //!   continuous-time models.
+//! - [`NonlinearModel`] of f and h given as [`PointFunction`]s (built-ins in
+//!   [`nonlinear::models`]), [`ekf_into`] (EKF, iterated: [`EkfOptions`]) and [`ukf_into`]
+//!   (UKF with [`SigmaPoints`]): the nonlinear Gaussian filters.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -54,6 +57,7 @@
 mod core;
 pub mod error;
 pub mod linear;
+pub mod nonlinear;
 #[cfg(feature = "python")]
 mod python;
 pub mod riccati;
@@ -73,6 +77,7 @@ pub use linear::smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagOptions, FixedLagResult, FixedLagSmoother,
     FixedPointResult, SmoothOutputs, SmootherResult,
 };
+pub use nonlinear::{ekf_into, ukf_into, EkfOptions, Iteration, NonlinearModel, PointFunction, SigmaPoints};
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,
     stationary_covariance, DareMethod, RiccatiProblem, RiccatiSolution,

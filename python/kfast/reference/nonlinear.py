@@ -76,7 +76,8 @@ def jacobian_by_differences(fn, x, t, u, wrapped=()):
     diff = Z[:n] - Z[n:]
     for k in wrapped:
         diff[:, k] = wrap(diff[:, k])
-    return (diff / (2 * step[:, None])).T
+    taken = np.diag(X[:n]) - np.diag(X[n:])  # the steps actually taken (x +- step rounds)
+    return (diff / taken[:, None]).T
 
 
 def hessian_by_differences(fn, x, t, u):
@@ -216,7 +217,8 @@ def ekf(
                 x_i = x_filt
                 for _ in range(iterations):
                     # relinearise h at the last estimate x_i
-                    Ho = jac(h, jac_h, x_i, t, ut, angles)[o]
+                    H = jac(h, jac_h, x_i, t, ut, angles)
+                    Ho = H[o]
                     if iteration == "book":
                         r = eo  # (9.13): the innovation stays at the prediction
                     elif iteration == "gauss-newton":
@@ -225,11 +227,13 @@ def ekf(
                         raise ValueError(f"iteration: {iteration!r}")
                     x_i = x + P @ Ho.T @ np.linalg.solve(Ho @ P @ Ho.T + Ro, r)  # (9.12)-(9.13)
                 if iteration == "gauss-newton":
-                    Ho = jac(h, jac_h, x_i, t, ut, angles)[o]  # the covariance at the estimate
+                    H = jac(h, jac_h, x_i, t, ut, angles)  # the covariance at the estimate
+                    Ho = H[o]
                 # (9.16)-(9.17): P(t|t) from the last linearisation; S, K reported from it too
                 S = Ho @ P @ Ho.T + Ro
                 _, P_filt, K, ll = _update(x, P, eo, P @ Ho.T, S, (Ho, Ro) if joseph else None)
                 x_filt = x_i
+                out["S"][t] = H @ P @ H.T + Rt  # all components, from the last linearisation
             out["S"][t][np.ix_(o, o)] = S
             out["K"][t][:, o] = K
             out["loglik_t"][t] = ll

@@ -3,6 +3,7 @@
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
 mod model;
+mod nonlinear;
 mod solvers;
 
 /// The extension's own Rust allocations (faer's matrices in the solvers, workspaces) use
@@ -353,6 +354,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InnovationCovarianceError", py.get_type::<InnovationCovarianceError>())?;
     m.add("NoStabilizingSolutionError", py.get_type::<NoStabilizingSolutionError>())?;
     m.add_class::<model::PyLinearGaussian>()?;
+    m.add_class::<nonlinear::PyNonlinearModel>()?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;
     m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;

@@ -159,6 +159,38 @@ impl FilterOutputs<'_> {
         }
     }
 
+    /// Stores the outputs of a step that are given as slices (the nonlinear filters, whose
+    /// workspaces are their own): x̂(t|t), P(t|t), the innovation, S, K and the log-likelihood
+    /// term. `K_pred` is not one of them: such a filter refuses it ([`Self::refuse_gain_pred`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn store_values(
+        &mut self,
+        t: usize,
+        x_filt: &[f64],
+        p_filt: &[f64],
+        innov: &[f64],
+        innovation_cov: &[f64],
+        gain: &[f64],
+        loglik_t: f64,
+    ) {
+        store(&mut self.x_filt, t, x_filt);
+        store(&mut self.p_filt, t, p_filt);
+        store(&mut self.innov, t, innov);
+        store(&mut self.innovation_cov, t, innovation_cov);
+        store(&mut self.gain, t, gain);
+        if let Some(o) = self.loglik_t.as_deref_mut() {
+            o[t] = loglik_t;
+        }
+    }
+
+    /// An error if the predictor gain `K_pred` was asked for (a filter that does not compute it).
+    pub(crate) fn refuse_gain_pred(&self, filter: &str) -> Result<()> {
+        if self.gain_pred.is_some() {
+            return Err(Error::arg("outputs", format!("K_pred is not computed by the {filter}")));
+        }
+        Ok(())
+    }
+
     /// Stores x̂(T|T−1), P(T|T−1).
     pub(crate) fn store_next(&mut self, x_next: &[f64], p_next: &[f64]) {
         store(&mut self.x_next, 0, x_next);

@@ -1,0 +1,200 @@
+"""N1, N1b and N2: the nonlinear Gaussian filters, kfast against filterpy (and kfast's linear filter).
+
+    python benches/bench_nonlinear.py [--quick]
+
+- N1: UKF (Merwe points alpha = 0.5, beta = 2, kappa = 0) on the CT model -- coordinated turn
+  with unknown turn rate, state (px, py, vx, vy, omega), dt = 0.1, seen by a range-bearing
+  sensor at the origin; q = 1 per axis, sigma_omega = 0.05, R = diag(1, (0.5 deg)^2), prior
+  x(0|-1) = (100, 50, 5, -2, 0.1), P0 = diag(100, 100, 4, 4, 0.01) -- filtered means and
+  covariances.
+- N1b: the same UKF on the 4-state CV model of W1 (``NonlinearModel.from_linear``).
+- N2: EKF with analytic Jacobians on CT; kfast's linear filter at n = 5, m = 2 beside it.
+
+kfast runs each with the built-in Rust model and with the model as a vectorized Python
+callable (one call per step for all points). filterpy's UKF and EKF run the same model with its
+per-point Python functions (a short series: it is slow); its UKF is given the prior's sigma
+points for its first update, since it predicts first. Every contender's x_filt is checked
+against kfast's built-in run on the same steps. Contenders run interleaved; medians.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(__file__))
+from bench_filter import Contender, run_interleaved  # noqa: E402
+
+import kfast  # noqa: E402
+
+DT = 0.1
+X0 = np.array([100.0, 50.0, 5.0, -2.0, 0.1])
+P0 = np.diag([100.0, 100.0, 4.0, 4.0, 0.01])
+R = np.diag([1.0, np.deg2rad(0.5) ** 2])
+
+
+def ct_one(x):
+    px, py, vx, vy, w = x
+    S, C = np.sin(w * DT), np.cos(w * DT)
+    s, c = (S / w, (1 - C) / w) if abs(w) > 1e-9 else (DT, 0.0)
+    return np.array([px + s * vx - c * vy, py + c * vx + s * vy, C * vx - S * vy, S * vx + C * vy, w])
+
+
+def ct_batch(X, t, u):
+    px, py, vx, vy, w = X.T
+    S, C = np.sin(w * DT), np.cos(w * DT)
+    small = np.abs(w) < 1e-9
+    ws = np.where(small, 1.0, w)
+    s = np.where(small, DT, S / ws)
+    c = np.where(small, 0.0, (1 - C) / ws)
+    return np.stack([px + s * vx - c * vy, py + c * vx + s * vy, C * vx - S * vy, S * vx + C * vy, w], axis=1)
+
+
+def ct_jac_one(x):
+    _, _, vx, vy, w = x
+    S, C = np.sin(w * DT), np.cos(w * DT)
+    s, c = S / w, (1 - C) / w
+    ds, dc = (w * DT * C - S) / w**2, (w * DT * S - (1 - C)) / w**2
+    return np.array(
+        [
+            [1, 0, s, -c, ds * vx - dc * vy],
+            [0, 1, c, s, dc * vx + ds * vy],
+            [0, 0, C, -S, -DT * (S * vx + C * vy)],
+            [0, 0, S, C, DT * (C * vx - S * vy)],
+            [0, 0, 0, 0, 1.0],
+        ]
+    )
+
+
+def rb_batch(X, t, u):
+    return np.stack([np.hypot(X[:, 0], X[:, 1]), np.arctan2(X[:, 1], X[:, 0])], axis=1)
+
+
+def rb_jac_one(x):
+    r2 = x[0] ** 2 + x[1] ** 2
+    r = np.sqrt(r2)
+    J = np.zeros((2, 5))
+    J[0, :2] = x[0] / r, x[1] / r
+    J[1, :2] = -x[1] / r2, x[0] / r2
+    return J
+
+
+def simulate(T, seed=20240601):
+    ct = kfast.models.coordinated_turn(DT, q=1.0, sigma_omega=0.05)
+    rng = np.random.default_rng(seed)
+    x = X0.copy()
+    y = np.zeros((T, 2))
+    for t in range(T):
+        y[t] = rb_batch(x[None], t, None)[0] + rng.multivariate_normal(np.zeros(2), R)
+        x = ct_one(x) + rng.multivariate_normal(np.zeros(5), ct.Q)
+    return ct, y
+
+
+def filterpy_ukf(ct, y):
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+    points = MerweScaledSigmaPoints(5, alpha=0.5, beta=2.0, kappa=0.0)
+
+    def run():
+        kf = UnscentedKalmanFilter(5, 2, DT, hx=lambda x: rb_batch(x[None], 0, None)[0], fx=lambda x, dt: ct_one(x), points=points)
+        kf.x, kf.P, kf.Q, kf.R = X0.copy(), P0.copy(), ct.Q, R
+        kf.sigmas_f = points.sigma_points(X0, P0)
+        out = np.zeros((len(y), 5))
+        for t in range(len(y)):
+            if t:
+                kf.predict()
+            kf.update(y[t])
+            out[t] = kf.x
+        return out
+
+    return run
+
+
+def filterpy_ekf(ct, y):
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    class CT(ExtendedKalmanFilter):
+        def predict_x(self, u=0):
+            self.x = ct_one(self.x)
+
+    def run():
+        kf = CT(5, 2)
+        kf.x, kf.P, kf.Q, kf.R = X0.copy(), P0.copy(), ct.Q, R
+        out = np.zeros((len(y), 5))
+        for t in range(len(y)):
+            kf.update(y[t], rb_jac_one, lambda x: rb_batch(x[None], 0, None)[0])
+            out[t] = kf.x
+            kf.F = ct_jac_one(kf.x)
+            kf.predict()
+        return out
+
+    return run
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+    rounds = 3 if args.quick else 7
+    T, T_py, T_peer = (20_000, 2_000, 300) if args.quick else (100_000, 10_000, 2_000)
+    ct, y = simulate(T)
+    radar = kfast.models.range_bearing((0.0, 0.0))
+    builtin = kfast.NonlinearModel(ct, radar, ct.Q, R, n=5)
+    python = kfast.NonlinearModel(
+        ct_batch, rb_batch, ct.Q, R, n=5, jac_f=lambda X, t, u: np.array([ct_jac_one(x) for x in X]),
+        jac_h=lambda X, t, u: np.array([rb_jac_one(x) for x in X]), angles=[1],
+    )
+    merwe = kfast.sigma.merwe(0.5, 2.0, 0.0)
+    out = ("x_filt", "P_filt")
+    cv = kfast.models.constant_velocity(2, DT, q=1.0, r=1.0)
+    cv_nl = kfast.NonlinearModel.from_linear(cv)
+    y_cv = cv.simulate(T, [1, -1, 0.5, 0.2], np.diag([10, 10, 1, 1.0]), seed=1).y
+    lin5 = kfast.LinearGaussian(ct_jac_one(X0), rb_jac_one(X0), ct.Q, R)
+    workloads = {
+        "N1: UKF on CT (Merwe 0.5, 2, 0)": [
+            Contender("kfast built-in", lambda: builtin.ukf(y, X0, P0, points=merwe, outputs=out), T),
+            Contender("kfast Python callable", lambda: python.ukf(y[:T_py], X0, P0, points=merwe, outputs=out), T_py),
+            Contender("filterpy UKF", filterpy_ukf(ct, y[:T_peer]), T_peer),
+        ],
+        "N1b: UKF on the CV model (n = 4, m = 2)": [
+            Contender("kfast built-in", lambda: cv_nl.ukf(y_cv, [1, -1, 0.5, 0.2], np.diag([10, 10, 1, 1.0]), points=merwe, outputs=out), T),
+            Contender("kfast linear filter (same model)", lambda: cv.filter(y_cv, [1, -1, 0.5, 0.2], np.diag([10, 10, 1, 1.0]), outputs=out), T),
+        ],
+        "N2: EKF on CT (analytic Jacobians)": [
+            Contender("kfast built-in", lambda: builtin.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast Python callable", lambda: python.ekf(y[:T_py], X0, P0, outputs=out), T_py),
+            Contender("filterpy EKF", filterpy_ekf(ct, y[:T_peer]), T_peer),
+            Contender("kfast linear filter, n = 5, m = 2", lambda: lin5.filter(y, X0, P0, outputs=out), T),
+        ],
+    }
+    print(f"kfast {kfast.__version__}; T = {T:,} (Python callables {T_py:,}, filterpy {T_peer:,}); {rounds} rounds, medians")
+    reference = {
+        "N1": builtin.ukf(y, X0, P0, points=merwe).x_filt,
+        "N2": builtin.ekf(y, X0, P0).x_filt,
+    }
+    checks = {
+        "N1": [("kfast Python callable", python.ukf(y[:T_py], X0, P0, points=merwe).x_filt), ("filterpy UKF", filterpy_ukf(ct, y[:T_peer])())],
+        "N2": [("kfast Python callable", python.ekf(y[:T_py], X0, P0).x_filt), ("filterpy EKF", filterpy_ekf(ct, y[:T_peer])())],
+    }
+    for name, contenders in workloads.items():
+        run_interleaved(contenders, rounds)
+        base = contenders[0]
+        print(f"\n{name}\n| contender | T | ns/step | IQR | /kfast built-in |\n|---|---:|---:|---:|---:|")
+        for c in contenders:
+            if not c.ok:
+                print(f"| {c.name} | {c.steps:,} | - | - | {c.error} |")
+                continue
+            lo, hi = c.spread()
+            print(f"| {c.name} | {c.steps:,} | {c.ns_per_step():,.0f} | {lo:,.0f}-{hi:,.0f} | {c.ns_per_step() / base.ns_per_step():.3g} |")
+        key = name.split(":")[0]
+        for who, x in checks.get(key, []):
+            print(f"  check {who}: max|dx_filt| = {np.max(np.abs(x - reference[key][: len(x)])):.1e}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,268 @@
+"""The nonlinear state-space model with additive noise and its Gaussian filters (EKF, UKF)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence, Union, cast
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kfast import _kfast
+from kfast._args import choice, index
+from kfast._arrays import as_float64, frozen_copy
+from kfast._typing import FilterOutputs, Form, Iteration
+from kfast.linear.model import FilterResult, _column_if_1d, _output_names
+from kfast.sigma import SigmaPoints, merwe
+
+if TYPE_CHECKING:
+    from kfast.linear.model import LinearGaussian
+
+__all__ = ["NonlinearModel", "BuiltinFunction"]
+
+PointFunction = Callable[[np.ndarray, int, Optional[np.ndarray]], ArrayLike]
+"""``f(X, t, u)``: X of shape (k, n), one row per point; returns (k, n) for f, (k, m) for h."""
+
+# The fields the nonlinear filters compute (all of FilterResult's but the predictor gain).
+_FIELDS = tuple(name for name, _ in _kfast.FILTER_FIELDS if name != "K_pred")
+
+
+@dataclass(frozen=True)
+class BuiltinFunction:
+    """A transition f or measurement h written in Rust, with its Jacobian in closed form
+    (``kfast.models.coordinated_turn``, ``kfast.models.range_bearing``). Pass it as ``f`` or
+    ``h`` of :class:`NonlinearModel`; the filter then never calls back into Python."""
+
+    kind: str
+    params: Any
+    """The model's parameters: a tuple of numbers, or the matrix of a linear map."""
+    dim_out: Optional[int] = None
+    """Outputs (None: n, for a transition)."""
+    Q: Optional[np.ndarray] = field(default=None, repr=False)
+    """The process noise covariance that goes with a transition model, if it has one."""
+    angles: tuple = ()
+    """The outputs that are angles (for a measurement model)."""
+
+
+class NonlinearModel:
+    """A nonlinear state-space model with additive Gaussian noise, validated once::
+
+        x[t+1] = f(x[t], t, u[t]) + w[t]      w ~ N(0, Q)
+        y[t]   = h(x[t], t, u[t]) + v[t]      v ~ N(0, R)
+        prior  x[0] ~ N(x0, P0)               (x0, P0) is x(0|-1): the first step is an update
+
+    Parameters
+    ----------
+    f, h : callable or BuiltinFunction
+        Either a Python function vectorized over a batch of points, ``f(X, t, u)`` with X of
+        shape (k, n) (one point per row), t the integer step and u the input row u[t] (None
+        without inputs), returning shape (k, n) for f and (k, m) for h -- the filter calls it
+        once per step for all its points (one sigma-point set, or the 2n points of a difference
+        Jacobian) -- or a built-in model from :mod:`kfast.models`, which runs in Rust.
+    Q : array_like, shape (n, n) or (T, n, n)
+        Process noise covariance (Q[t] takes x[t] to x[t+1]); may be singular, even 0.
+    R : array_like, shape (m, m) or (T, m, m)
+        Measurement noise covariance; m is taken from it.
+    n : int
+        The state size.
+    jac_f, jac_h : callable, optional
+        Jacobians, batched like f and h: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n).
+        Without them the EKF uses central differences, column j with step
+        eps^(1/3) max(|x_j|, 1), all 2n points in one call of f or h.
+    angles : sequence of int, optional
+        The components of y that are angles (radians): their innovations, differences and
+        sigma-point deviations are wrapped to [-pi, pi), so a bearing crossing +-pi does not
+        jump by 2 pi. A built-in h brings its own (e.g. the bearing of ``range_bearing``).
+
+    Examples
+    --------
+    A target in a coordinated turn seen by a range-bearing radar at the origin:
+
+    >>> ct = kfast.models.coordinated_turn(dt=0.1, q=1.0, sigma_omega=0.05)
+    >>> radar = kfast.models.range_bearing(sensor=(0.0, 0.0))
+    >>> model = kfast.NonlinearModel(ct, radar, ct.Q, np.diag([1.0, np.deg2rad(0.5) ** 2]), n=5)
+    >>> y = np.array([[111.8, 0.4636], [112.3, 0.4513]])
+    >>> res = model.ukf(y, x0=[100, 50, 5, -2, 0.1], P0=np.diag([100, 100, 4, 4, 0.01]))
+    >>> res.x_filt.shape, res.P_filt.shape
+    ((2, 5), (2, 5, 5))
+    """
+
+    def __init__(
+        self,
+        f: Union[PointFunction, BuiltinFunction],
+        h: Union[PointFunction, BuiltinFunction],
+        Q: ArrayLike,
+        R: ArrayLike,
+        n: int,
+        jac_f: Optional[Callable[..., ArrayLike]] = None,
+        jac_h: Optional[Callable[..., ArrayLike]] = None,
+        angles: Sequence[int] = (),
+    ) -> None:
+        self.n_states: int = index("n", n)
+        if self.n_states == 0:
+            raise _kfast.KfastError("n: must be at least 1")
+        self.Q: np.ndarray = frozen_copy("Q", Q, scalar_shape=(1, 1))
+        self.R: np.ndarray = frozen_copy("R", R, scalar_shape=(1, 1))
+        if self.R.ndim not in (2, 3):
+            raise _kfast.KfastError(f"R: expected shape (m, m) or (T, m, m), got {self.R.shape}")
+        self.n_obs: int = self.R.shape[-1]
+        given = tuple(angles) if not isinstance(h, BuiltinFunction) or angles else h.angles
+        self.angles: tuple[int, ...] = _angles(given, self.n_obs)
+        for name, fn, jac in (("f", f, jac_f), ("h", h, jac_h)):
+            if jac is not None and not callable(jac):
+                raise _kfast.KfastError(f"jac_{name}: expected a callable, got {type(jac).__name__}")
+            if jac is not None and isinstance(fn, BuiltinFunction):
+                raise _kfast.KfastError(f"jac_{name}: the built-in {name} has its own Jacobian")
+        self.f, self.h = f, h
+        self._core = _kfast.NonlinearModel(
+            _spec("f", f), _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles), jac_f=jac_f, jac_h=jac_h
+        )
+
+    @classmethod
+    def from_linear(cls, model: "LinearGaussian") -> "NonlinearModel":
+        """The linear model x[t+1] = F x + w, y = H x + v as a nonlinear one, run by the built-in
+        matrix path (constant F and H, no B, D or N)."""
+        if model.steps is not None and (model.F.ndim == 3 or model.H.ndim == 3):
+            raise _kfast.KfastError("model: F and H must be constant to run as a nonlinear model")
+        if model.B is not None or model.D is not None or model.N is not None:
+            raise _kfast.KfastError("model: a model with B, D or N has no nonlinear form here")
+        return cls(
+            BuiltinFunction("linear", model.F),
+            BuiltinFunction("linear", model.H, dim_out=model.n_obs),
+            model.Q,
+            model.R,
+            n=model.n_states,
+        )
+
+    def __repr__(self) -> str:
+        return f"NonlinearModel(n={self.n_states}, m={self.n_obs}, angles={list(self.angles)})"
+
+    def ekf(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        form: Form = "joseph",
+        outputs: FilterOutputs = None,
+    ) -> FilterResult:
+        """The extended Kalman filter (Söderström (9.2)-(9.11)).
+
+        h is linearized at x(t|t-1) and f at x(t|t)::
+
+            H(t) = dh/dx at x(t|t-1)       e(t) = y(t) - h(x(t|t-1))      S = H P H' + R
+            K    = P H' S^-1               x(t|t) = x(t|t-1) + K e         P(t|t): Joseph form
+            F(t) = df/dx at x(t|t)         x(t+1|t) = f(x(t|t))            P(t+1|t) = F P(t|t) F' + Q
+
+        Parameters
+        ----------
+        y : array_like, shape (T, m), or (T,) when m = 1
+            Observations; NaN marks a missing value (the update uses the observed components).
+        x0, P0 : array_like
+            The prior x(0|-1), P(0|-1).
+        u : array_like, shape (T, k), optional
+            Inputs, passed to f and h as u[t].
+        iterations : int
+            Relinearizations of the update per step (0: the EKF).
+        iteration : {"book", "gauss-newton"}
+            "book" (Söderström (9.12)-(9.17)): the gain is recomputed with H at the last
+            estimate, the innovation stays y - h(x(t|t-1)). "gauss-newton" (Bell & Cathey 1993):
+            x_(i+1) = x(t|t-1) + K_i (y - h(x_i) - H_i (x(t|t-1) - x_i)), Gauss-Newton steps on
+            the MAP criterion; P(t|t) relinearized at the result. S, K and P(t|t) come from the
+            last linearization; the innovation and log-likelihood use y - h(x(t|t-1)).
+        form : {"joseph", "standard"}
+            The covariance update (as the linear filter's).
+        outputs : str or iterable of str, optional
+            The fields to store (default: all but K_pred, which a nonlinear filter does not have).
+
+        Returns
+        -------
+        FilterResult
+            With ``model`` None; ``loglik`` is that of the EKF's Gaussian approximation.
+        """
+        iteration = cast(Iteration, choice("iteration", iteration, ("book", "gauss-newton")))
+        form = cast(Form, choice("form", form, ("joseph", "standard")))
+        args = self._data(y, x0, P0, u)
+        out = self._core.ekf(
+            *args[:3], self._outputs(outputs), u=args[3], form=form, iterations=index("iterations", iterations),
+            iteration=iteration,
+        )
+        return FilterResult(**out)
+
+    def ukf(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        points: Optional[SigmaPoints] = None,
+        outputs: FilterOutputs = None,
+    ) -> FilterResult:
+        """The unscented Kalman filter (Julier & Uhlmann 1997; Wan & van der Merwe 2000).
+
+        At step t the sigma points of (x(t|t-1), P(t|t-1)) go through h::
+
+            y_hat = sum Wm_i h(X_i)        S = sum Wc_i (h(X_i) - y_hat)(.)' + R
+            C = sum Wc_i (X_i - x)(h(X_i) - y_hat)'      K = C S^-1
+            x(t|t) = x(t|t-1) + K (y - y_hat)            P(t|t) = P(t|t-1) - K S K'
+
+        and the points of (x(t|t), P(t|t)) through f give x(t+1|t) and P(t+1|t) (plus Q). The
+        points are drawn afresh at each update (as filterpy 2.0 and Särkkä 2013 do).
+
+        Parameters
+        ----------
+        points : SigmaPoints, optional
+            ``kfast.sigma.merwe(alpha=1e-3, beta=2, kappa=0)`` by default; or ``julier(kappa)``,
+            ``cubature()``.
+        y, x0, P0, u, outputs
+            As :meth:`ekf`.
+
+        Raises
+        ------
+        KfastError
+            Also when P(t|t-1) or P(t|t) stops being positive definite (the message names the
+            step): there are then no sigma points.
+        """
+        points = merwe() if points is None else points
+        if not isinstance(points, SigmaPoints):
+            raise _kfast.KfastError(f"points: expected a kfast.sigma.SigmaPoints, got {type(points).__name__}")
+        args = self._data(y, x0, P0, u)
+        out = self._core.ukf(*args[:3], self._outputs(outputs), points._spec(), u=args[3])
+        return FilterResult(**out)
+
+    def _outputs(self, outputs: Any) -> list[str]:
+        names = _output_names(outputs)
+        return list(_FIELDS) if names is None else names
+
+    def _data(
+        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray]]:
+        y_arr = _column_if_1d(as_float64("y", y), self.n_obs)
+        x, P = as_float64("x0", x0), as_float64("P0", P0)
+        if self.n_states == 1:
+            x = x.reshape(1) if x.size == 1 else x
+            P = P.reshape(1, 1) if P.size == 1 else P
+        u_arr = None if u is None else as_float64("u", u)
+        if u_arr is not None and u_arr.ndim == 1:
+            u_arr = u_arr[:, None]
+        return y_arr, x, P, u_arr
+
+
+def _spec(name: str, fn: Any) -> Any:
+    """What the compiled model takes for f or h: the callable, or a built-in's (kind, params)."""
+    if isinstance(fn, BuiltinFunction):
+        return (fn.kind, fn.params)
+    if not callable(fn):
+        raise _kfast.KfastError(f"{name}: expected a callable {name}(X, t, u) or a kfast.models built-in, got {type(fn).__name__}")
+    return fn
+
+
+def _angles(angles: Sequence[int], m: int) -> tuple[int, ...]:
+    out = []
+    for a in angles:
+        if isinstance(a, bool) or not isinstance(a, (int, np.integer)) or not 0 <= a < m:
+            raise _kfast.KfastError(f"angles: expected indices of outputs in [0, {m}), got {a!r}")
+        out.append(int(a))
+    return tuple(out)

@@ -1,0 +1,404 @@
+//! The extended and unscented Kalman filters over a whole series.
+//!
+//! Both end each measurement update with the model-agnostic Gaussian update
+//! (`core::gaussian`, Söderström Lemma 6.1): they differ only in how they predict the
+//! measurement — the innovation e, the cross-covariance C = Cov(x, y) and S = Cov(y) — and in
+//! how they propagate the state:
+//!
+//! - **EKF** (Söderström (9.2)–(9.11)): h linearized at x̂(t|t−1), C = P H', S = H P H' + R;
+//!   f linearized at x̂(t|t): x̂(t+1|t) = f(x̂(t|t)), P(t+1|t) = F P(t|t) F' + Q.
+//! - **UKF** (Julier & Uhlmann 1997; Wan & van der Merwe 2000): sigma points of
+//!   (x̂(t|t−1), P(t|t−1)) through h give ŷ, S and C; points of (x̂(t|t), P(t|t)) through f
+//!   give x̂(t+1|t) and P(t+1|t) (plus Q). P(t|t) = P − K S K'.
+//!
+//! Sizes are run-time; every buffer is allocated once per call, before the loop.
+
+use super::function::{jacobian_by_differences, wrap_angle, Differences, PointFunction};
+use super::model::NonlinearModel;
+use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed};
+use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize};
+use crate::core::dims::Dyn;
+use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
+use crate::core::Series;
+use crate::error::{Error, Result};
+use crate::linear::filter::{FilterOutputs, UpdateForm};
+
+/// How the iterated EKF relinearizes its update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Iteration {
+    /// Söderström (9.12)–(9.17): the gain moves to the new linearization point, the
+    /// innovation stays y − h(x̂(t|t−1)); P(t|t) from the last linearization.
+    #[default]
+    Book,
+    /// Gauss–Newton on the MAP criterion (Bell & Cathey 1993):
+    /// x_{i+1} = x̂⁻ + K_i (y − h(x_i) − H_i (x̂⁻ − x_i)); P(t|t) relinearized at the result.
+    GaussNewton,
+}
+
+/// Options of [`ekf_into`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EkfOptions {
+    /// The covariance update (Joseph by default).
+    pub form: UpdateForm,
+    /// Relinearizations of the update per step (0: the EKF).
+    pub iterations: usize,
+    /// How to relinearize.
+    pub iteration: Iteration,
+}
+
+/// The extended Kalman filter over the series `y` (T × m) from the prior (x0, P0) = x(0|−1),
+/// storing the outputs given in `out` (all but `K_pred`); returns the log-likelihood of its
+/// Gaussian approximation (Söderström (6.142) with the linearized S). Jacobians are the
+/// functions' own, or central differences ([`PointFunction::jacobian`]).
+pub fn ekf_into(
+    model: &NonlinearModel,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    options: EkfOptions,
+    mut out: FilterOutputs<'_>,
+) -> Result<f64> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let steps = model.check_run(y, u, x0, p0)?;
+    out.check_sizes(steps, n, m)?;
+    out.refuse_gain_pred("extended Kalman filter")?;
+    let mut ws = Step::new(n, m, x0, p0);
+    let mut diffs = Differences::default();
+    let mut jac_f = vec![0.0; n * n];
+    let mut iterate = GaussianUpdate::new(Dyn { n, m });
+    let (mut x_i, mut h_at_xi) = (vec![0.0; n], vec![0.0; m]);
+    let mut scratch_p = vec![0.0; n * n];
+    let mut total = LoglikSum::default();
+    for t in 0..steps {
+        let (y_t, u_t) = (y.row(t), u.map(|u| u.row(t)));
+        out.store_prior(t, &ws.x, &ws.p);
+        // measurement prediction at x̂(t|t−1) (9.9)
+        evaluate(model.h(), "h", &ws.x, 1, t, u_t, &mut ws.y_hat)?;
+        jacobian(model.h(), "h", &ws.x, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
+        ws.linearize(model, t);
+        ws.observe(model, y_t);
+        if ws.observed.is_empty() {
+            ws.skip_update();
+        } else {
+            ws.gather(model, t, None);
+            ws.update(options.form, t)?;
+            if options.iterations > 0 {
+                x_i.copy_from_slice(&ws.x_filt);
+                for _ in 0..options.iterations {
+                    // relinearize h at the last estimate x_i
+                    jacobian(model.h(), "h", &x_i, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
+                    ws.linearize(model, t);
+                    let residual = match options.iteration {
+                        Iteration::Book => None, // (9.13): the innovation stays at the prediction
+                        Iteration::GaussNewton => {
+                            evaluate(model.h(), "h", &x_i, 1, t, u_t, &mut h_at_xi)?;
+                            Some(Residual { y: y_t, x_i: &x_i, h_at_xi: &h_at_xi })
+                        }
+                    };
+                    ws.gather(model, t, residual);
+                    let mo = ws.observed.len();
+                    iterate.apply(Dyn { n, m }, mo, &ws.prediction(), &ws.x, &ws.p, &mut x_i, &mut scratch_p, t)?;
+                }
+                if options.iteration == Iteration::GaussNewton {
+                    jacobian(model.h(), "h", &x_i, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
+                    ws.linearize(model, t);
+                }
+                // P(t|t), S and K from the last linearization, with the innovation at the
+                // prediction (9.16)–(9.17)
+                ws.gather(model, t, None);
+                ws.update(options.form, t)?;
+                ws.x_filt.copy_from_slice(&x_i);
+            }
+            total.add(&ws.gauss);
+        }
+        ws.store(&mut out, t);
+        // time update (9.10): f and its Jacobian at x̂(t|t)
+        evaluate(model.f(), "f", &ws.x_filt, 1, t, u_t, &mut ws.x)?;
+        jacobian(model.f(), "f", &ws.x_filt, t, u_t, &[], &mut diffs, &mut jac_f)?;
+        mul::<Dyn>(&mut ws.fp, &jac_f, &ws.p_filt, n, n, n);
+        mul_bt_sym::<Dyn>(&mut ws.p, &ws.fp, &jac_f, n, n);
+        ws.add_process_noise(model, t);
+    }
+    out.store_next(&ws.x, &ws.p);
+    Ok(total.total())
+}
+
+/// The unscented Kalman filter over the series `y` with the sigma-point set `points`; as
+/// [`ekf_into`] otherwise (the standard form P − K S K' of the update, the only one that
+/// applies without an H). Fails, naming the step, when P(t|t−1) or P(t|t) stops being
+/// positive definite (no square root, so no sigma points).
+pub fn ukf_into(
+    model: &NonlinearModel,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    points: SigmaPoints,
+    mut out: FilterOutputs<'_>,
+) -> Result<f64> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let steps = model.check_run(y, u, x0, p0)?;
+    out.check_sizes(steps, n, m)?;
+    out.refuse_gain_pred("unscented Kalman filter")?;
+    points.validate(n)?;
+    let weights = points.weights(n);
+    let k = points.count(n);
+    let mut ws = Step::new(n, m, x0, p0);
+    let mut factor = vec![0.0; n * n];
+    let mut sigma = vec![0.0; k * n];
+    let mut images_h = vec![0.0; k * m];
+    let mut images_f = vec![0.0; k * n];
+    let mut through_h = Transformed::new(k, n, m);
+    let mut through_f = Transformed::new(k, n, n);
+    let mut total = LoglikSum::default();
+    for t in 0..steps {
+        let (y_t, u_t) = (y.row(t), u.map(|u| u.row(t)));
+        out.store_prior(t, &ws.x, &ws.p);
+        square_root(&mut factor, &ws.p, n, "P(t|t-1)", t)?;
+        place(&weights, &ws.x, &factor, &mut sigma);
+        evaluate(model.h(), "h", &sigma, k, t, u_t, &mut images_h)?;
+        unscented_transform(&weights, &sigma, &images_h, model.angles(), &mut through_h);
+        ws.y_hat.copy_from_slice(&through_h.mean);
+        ws.s_full.copy_from_slice(&through_h.cov);
+        ws.c_full.copy_from_slice(&through_h.cross);
+        ws.add_measurement_noise(model, t);
+        ws.observe(model, y_t);
+        if ws.observed.is_empty() {
+            ws.skip_update();
+        } else {
+            ws.gather(model, t, None);
+            ws.update(UpdateForm::Standard, t)?;
+            total.add(&ws.gauss);
+        }
+        ws.store(&mut out, t);
+        square_root(&mut factor, &ws.p_filt, n, "P(t|t)", t)?;
+        place(&weights, &ws.x_filt, &factor, &mut sigma);
+        evaluate(model.f(), "f", &sigma, k, t, u_t, &mut images_f)?;
+        unscented_transform(&weights, &sigma, &images_f, &[], &mut through_f);
+        ws.x.copy_from_slice(&through_f.mean);
+        ws.p.copy_from_slice(&through_f.cov);
+        ws.add_process_noise(model, t);
+    }
+    out.store_next(&ws.x, &ws.p);
+    Ok(total.total())
+}
+
+/// `φ` at `k` points, with its output checked finite (the error names the function and step).
+fn evaluate(
+    phi: &dyn PointFunction,
+    name: &'static str,
+    points: &[f64],
+    k: usize,
+    t: usize,
+    u: Option<&[f64]>,
+    out: &mut [f64],
+) -> Result<()> {
+    phi.eval(points, k, t, u, out)?;
+    if let Some(v) = out[..k * phi.dim_out()].iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg_at(name, t, format!("returned a non-finite value ({v})")));
+    }
+    Ok(())
+}
+
+/// `∂φ/∂x` at `x`: the function's own Jacobian, or central differences; checked finite.
+#[allow(clippy::too_many_arguments)]
+fn jacobian(
+    phi: &dyn PointFunction,
+    name: &'static str,
+    x: &[f64],
+    t: usize,
+    u: Option<&[f64]>,
+    angles: &[usize],
+    diffs: &mut Differences,
+    out: &mut [f64],
+) -> Result<()> {
+    match phi.jacobian(x, 1, t, u, out) {
+        Some(result) => result?,
+        None => jacobian_by_differences(phi, x, t, u, angles, diffs, out)?,
+    }
+    if let Some(v) = out.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg_at(name, t, format!("its Jacobian has a non-finite value ({v})")));
+    }
+    Ok(())
+}
+
+/// The lower Cholesky factor of a state covariance, or the error naming it and the step.
+fn square_root(factor: &mut [f64], p: &[f64], n: usize, what: &'static str, t: usize) -> Result<()> {
+    cholesky(factor, p, n).map_err(|j| Error::NotPositiveDefinite {
+        what,
+        step: t,
+        problem: format!(
+            "pivot {j} of its Cholesky factor is not positive, so it has no sigma points \
+             (a nearly singular covariance: check Q, R and P0, or use the cubature points)"
+        ),
+    })
+}
+
+/// The point of a Gauss–Newton relinearization: the data, x_i and h(x_i).
+#[derive(Clone, Copy)]
+struct Residual<'a> {
+    y: &'a [f64],
+    x_i: &'a [f64],
+    h_at_xi: &'a [f64],
+}
+
+/// One filter's state and step buffers (run-time sizes, allocated once per call).
+struct Step {
+    n: usize,
+    m: usize,
+    /// x̂(t|t−1), P(t|t−1); x̂(t+1|t), P(t+1|t) after the time update.
+    x: Vec<f64>,
+    p: Vec<f64>,
+    x_filt: Vec<f64>,
+    p_filt: Vec<f64>,
+    /// ŷ, its Jacobian H (m × n) or the sigma points' S and C, for all m components.
+    y_hat: Vec<f64>,
+    jac_h: Vec<f64>,
+    s_full: Vec<f64>,
+    c_full: Vec<f64>,
+    innov: Vec<f64>,
+    /// The observed components and their blocks: e, C (n × mo), S, H (mo × n), R.
+    observed: Vec<usize>,
+    e_obs: Vec<f64>,
+    c_obs: Vec<f64>,
+    s_obs: Vec<f64>,
+    h_obs: Vec<f64>,
+    r_obs: Vec<f64>,
+    gain: Vec<f64>,
+    fp: Vec<f64>,
+    gauss: GaussianUpdate<Dyn>,
+}
+
+impl Step {
+    fn new(n: usize, m: usize, x0: &[f64], p0: &[f64]) -> Self {
+        Step {
+            n,
+            m,
+            x: x0.to_vec(),
+            p: p0.to_vec(),
+            x_filt: vec![0.0; n],
+            p_filt: vec![0.0; n * n],
+            y_hat: vec![0.0; m],
+            jac_h: vec![0.0; m * n],
+            s_full: vec![0.0; m * m],
+            c_full: vec![0.0; n * m],
+            innov: vec![0.0; m],
+            observed: Vec::with_capacity(m),
+            e_obs: vec![0.0; m],
+            c_obs: vec![0.0; n * m],
+            s_obs: vec![0.0; m * m],
+            h_obs: vec![0.0; m * n],
+            r_obs: vec![0.0; m * m],
+            gain: vec![0.0; n * m],
+            fp: vec![0.0; n * n],
+            gauss: GaussianUpdate::new(Dyn { n, m }),
+        }
+    }
+
+    /// For a linearized measurement (EKF): C = P H' and S = H P H' + R for all components.
+    fn linearize(&mut self, model: &NonlinearModel, t: usize) {
+        let (n, m) = (self.n, self.m);
+        mul_bt::<Dyn>(&mut self.c_full, &self.p, &self.jac_h, n, n, m);
+        mul::<Dyn>(&mut self.s_full, &self.jac_h, &self.c_full, m, n, m);
+        symmetrize(&mut self.s_full, m);
+        self.add_measurement_noise(model, t);
+    }
+
+    fn add_measurement_noise(&mut self, model: &NonlinearModel, t: usize) {
+        for (s, r) in self.s_full.iter_mut().zip(model.r_at(t)) {
+            *s += r;
+        }
+    }
+
+    /// The innovation y − ŷ of every component (angles wrapped; NaN where y is missing) and
+    /// the observed components.
+    fn observe(&mut self, model: &NonlinearModel, y: &[f64]) {
+        for (i, e) in self.innov.iter_mut().enumerate() {
+            *e = y[i] - self.y_hat[i];
+            if model.angles().contains(&i) {
+                *e = wrap_angle(*e);
+            }
+        }
+        self.observed.clear();
+        self.observed.extend((0..self.m).filter(|&i| !y[i].is_nan()));
+    }
+
+    /// The observed blocks of e, C, S, H and R; with a Gauss–Newton `residual`, e is
+    /// y − h(x_i) − H (x̂⁻ − x_i) instead of the innovation.
+    fn gather(&mut self, model: &NonlinearModel, t: usize, residual: Option<Residual<'_>>) {
+        let (n, m, mo) = (self.n, self.m, self.observed.len());
+        let r = model.r_at(t);
+        for (a, &i) in self.observed.iter().enumerate() {
+            let h = &self.jac_h[i * n..(i + 1) * n];
+            self.h_obs[a * n..(a + 1) * n].copy_from_slice(h);
+            self.e_obs[a] = match residual {
+                None => self.innov[i],
+                Some(Residual { y, x_i, h_at_xi }) => {
+                    let mut e = y[i] - h_at_xi[i];
+                    if model.angles().contains(&i) {
+                        e = wrap_angle(e);
+                    }
+                    e - h.iter().zip(&self.x).zip(x_i).map(|((h, x), xi)| h * (x - xi)).sum::<f64>()
+                }
+            };
+            for row in 0..n {
+                self.c_obs[row * mo + a] = self.c_full[row * m + i];
+            }
+            for (b, &j) in self.observed.iter().enumerate() {
+                self.s_obs[a * mo + b] = self.s_full[i * m + j];
+                self.r_obs[a * mo + b] = r[i * m + j];
+            }
+        }
+    }
+
+    /// The gathered blocks as a measurement prediction for the standard form.
+    fn prediction(&self) -> MeasurementPrediction<'_> {
+        let (n, mo) = (self.n, self.observed.len());
+        MeasurementPrediction {
+            innov: &self.e_obs[..mo],
+            cross_cov: &self.c_obs[..n * mo],
+            innov_cov: &self.s_obs[..mo * mo],
+            joseph: None,
+        }
+    }
+
+    /// The Gaussian update with the gathered blocks; K's observed columns from it.
+    fn update(&mut self, form: UpdateForm, t: usize) -> Result<()> {
+        let (n, m, mo) = (self.n, self.m, self.observed.len());
+        let Step { gauss, e_obs, c_obs, s_obs, h_obs, r_obs, x, p, x_filt, p_filt, .. } = self;
+        let pred = MeasurementPrediction {
+            innov: &e_obs[..mo],
+            cross_cov: &c_obs[..n * mo],
+            innov_cov: &s_obs[..mo * mo],
+            joseph: (form == UpdateForm::Joseph).then(|| (&h_obs[..mo * n], &r_obs[..mo * mo])),
+        };
+        gauss.apply(Dyn { n, m }, mo, &pred, x, p, x_filt, p_filt, t)?;
+        self.gain.fill(0.0);
+        let gain_t = self.gauss.gain_t(mo, n);
+        for (a, &i) in self.observed.iter().enumerate() {
+            for row in 0..n {
+                self.gain[row * m + i] = gain_t[a * n + row];
+            }
+        }
+        Ok(())
+    }
+
+    fn skip_update(&mut self) {
+        self.x_filt.copy_from_slice(&self.x);
+        self.p_filt.copy_from_slice(&self.p);
+        self.gain.fill(0.0);
+        self.gauss.skip();
+    }
+
+    fn store(&self, out: &mut FilterOutputs<'_>, t: usize) {
+        out.store_values(t, &self.x_filt, &self.p_filt, &self.innov, &self.s_full, &self.gain, self.gauss.loglik_t());
+    }
+
+    fn add_process_noise(&mut self, model: &NonlinearModel, t: usize) {
+        for (p, q) in self.p.iter_mut().zip(model.q_at(t)) {
+            *p += q;
+        }
+        symmetrize(&mut self.p, self.n);
+    }
+}

@@ -1,0 +1,142 @@
+//! [`PointFunction`]: the state transition f or the measurement h of a nonlinear model,
+//! evaluated at a batch of points in one call, and Jacobians by central differences.
+
+use crate::error::{Error, Result};
+
+/// A vector function `φ(x, t, u)` of the state (n numbers) with `dim_out` outputs, evaluated at
+/// `k` points at once: one call per step serves all sigma points (or all difference points),
+/// so a function written in Python costs one call per step, not one per point.
+///
+/// Implementations: the built-in models ([`super::models`]), a linear map ([`LinearMap`]) and,
+/// in the Python extension, a Python callable or a compiled C function.
+pub trait PointFunction: Send + Sync {
+    /// The number of inputs n (the state size).
+    fn dim_in(&self) -> usize;
+
+    /// The number of outputs.
+    fn dim_out(&self) -> usize;
+
+    /// `out[i] = φ(points[i], t, u)` for the `k` rows of `points` (row-major `k × n` in,
+    /// `k × dim_out` out). `u` is the input row of step `t`, if the model has inputs.
+    fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()>;
+
+    /// The Jacobians `∂φ/∂x` at the `k` points (`k × dim_out × n`), when known in closed
+    /// form; `None` (the default) means "use central differences" (the filters difference φ
+    /// then, all 2n points in one call; docs/algorithms.md, "Extended Kalman filter").
+    fn jacobian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let _ = (points, k, t, u, out);
+        None
+    }
+}
+
+/// `x ↦ A x` for a constant `A` (`dim_out × n`, row-major): a linear model as a nonlinear one.
+#[derive(Debug, Clone)]
+pub struct LinearMap {
+    a: Vec<f64>,
+    rows: usize,
+    cols: usize,
+}
+
+impl LinearMap {
+    /// The map of `a` (`rows × cols`, row-major).
+    pub fn new(a: Vec<f64>, rows: usize, cols: usize) -> Result<Self> {
+        if rows.checked_mul(cols) != Some(a.len()) {
+            return Err(Error::arg("A", format!("has {} entries, not {rows} × {cols}", a.len())));
+        }
+        Ok(LinearMap { a, rows, cols })
+    }
+}
+
+impl PointFunction for LinearMap {
+    fn dim_in(&self) -> usize {
+        self.cols
+    }
+
+    fn dim_out(&self) -> usize {
+        self.rows
+    }
+
+    fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        let (r, c) = (self.rows, self.cols);
+        for i in 0..k {
+            let x = &points[i * c..(i + 1) * c];
+            for (j, o) in out[i * r..(i + 1) * r].iter_mut().enumerate() {
+                *o = self.a[j * c..(j + 1) * c].iter().zip(x).map(|(a, x)| a * x).sum();
+            }
+        }
+        Ok(())
+    }
+
+    fn jacobian(
+        &self,
+        _points: &[f64],
+        k: usize,
+        _t: usize,
+        _u: Option<&[f64]>,
+        out: &mut [f64],
+    ) -> Option<Result<()>> {
+        for block in out.chunks_exact_mut(self.a.len()).take(k) {
+            block.copy_from_slice(&self.a);
+        }
+        Some(Ok(()))
+    }
+}
+
+/// Scratch for [`jacobian_by_differences`]: the 2n difference points and their images.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Differences {
+    points: Vec<f64>,
+    images: Vec<f64>,
+    steps: Vec<f64>,
+}
+
+/// `∂φ/∂x` at `x` (`dim_out × n` into `out`) by central differences, all 2n points in one
+/// call of `φ`: column j is `(φ(x + δ_j e_j) − φ(x − δ_j e_j)) / 2δ_j` with
+/// `δ_j = ε^{1/3} max(|x_j|, 1)` (ε the machine epsilon; the step that balances truncation
+/// and rounding error for a central difference). Output components listed in `angles` are
+/// angles: their differences are wrapped to [−π, π) first, so a function that wraps its
+/// output (atan2) is differenced across ±π correctly.
+pub(crate) fn jacobian_by_differences(
+    phi: &dyn PointFunction,
+    x: &[f64],
+    t: usize,
+    u: Option<&[f64]>,
+    angles: &[usize],
+    scratch: &mut Differences,
+    out: &mut [f64],
+) -> Result<()> {
+    let (n, r) = (x.len(), phi.dim_out());
+    let Differences { points, images, steps } = scratch;
+    points.resize(2 * n * n, 0.0);
+    images.resize(2 * n * r, 0.0);
+    steps.resize(n, 0.0);
+    let cbrt_eps = f64::EPSILON.cbrt();
+    for j in 0..n {
+        steps[j] = cbrt_eps * x[j].abs().max(1.0);
+        for (side, sign) in [(0, 1.0), (1, -1.0)] {
+            let row = &mut points[(side * n + j) * n..(side * n + j + 1) * n];
+            row.copy_from_slice(x);
+            row[j] += sign * steps[j];
+        }
+    }
+    phi.eval(points, 2 * n, t, u, images)?;
+    for j in 0..n {
+        // The step actually taken (x ± δ rounds), so that the quotient is exact for a linear φ.
+        let h = points[j * n + j] - points[(n + j) * n + j];
+        for i in 0..r {
+            let mut diff = images[j * r + i] - images[(n + j) * r + i];
+            if angles.contains(&i) {
+                diff = wrap_angle(diff);
+            }
+            out[i * n + j] = diff / h;
+        }
+    }
+    Ok(())
+}
+
+/// `a − 2π ⌊(a + π) / 2π⌋`, in [−π, π).
+#[inline]
+pub fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    a - TAU * ((a + PI) / TAU).floor()
+}

@@ -1,0 +1,23 @@
+//! Nonlinear Gaussian filters: the extended Kalman filter (and its iterated forms) and the
+//! unscented Kalman filter, for the model with additive noise
+//!
+//! ```text
+//! x[t+1] = f(x[t], t, u[t]) + w[t]     w ~ N(0, Q)
+//! y[t]   = h(x[t], t, u[t]) + v[t]     v ~ N(0, R)      prior x(0|−1) ~ N(x0, P0)
+//! ```
+//!
+//! f and h are [`PointFunction`]s, evaluated at a batch of points per call: the built-in
+//! models of [`models`], a [`LinearMap`], or (in the Python extension) a Python callable.
+//! [`NonlinearModel`] validates them with Q and R once; [`ekf_into`] and [`ukf_into`] run a
+//! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs.
+
+mod filter;
+mod function;
+mod model;
+pub mod models;
+mod sigma;
+
+pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration};
+pub use function::{wrap_angle, LinearMap, PointFunction};
+pub use model::NonlinearModel;
+pub use sigma::SigmaPoints;

@@ -1,0 +1,213 @@
+//! Built-in nonlinear models written in Rust: the coordinated turn and the range–bearing
+//! sensor. They are [`PointFunction`]s with closed-form Jacobians, and compose with each other
+//! and with linear maps in one [`NonlinearModel`](super::NonlinearModel).
+
+use super::function::PointFunction;
+use crate::error::{Error, Result};
+
+/// Coordinated turn with unknown turn rate, state (p_x, p_y, v_x, v_y, ω): the exact
+/// discretization over a step `dt` for a constant ω (Bar-Shalom, Li & Kirubarajan 2001, ch. 11;
+/// Li & Jilkov 2003):
+///
+/// ```text
+/// p_x' = p_x + s v_x − c v_y     v_x' = C v_x − S v_y     ω' = ω
+/// p_y' = p_y + c v_x + s v_y     v_y' = S v_x + C v_y
+/// s = sin(ω dt)/ω = dt sinc(ω dt),  c = (1 − cos ω dt)/ω = (ω dt²/2) sinc²(ω dt/2),
+/// C = cos ω dt,  S = sin ω dt
+/// ```
+///
+/// written through sinc so that ω → 0 (the constant-velocity model) has no 0/0 and no
+/// cancellation; the Jacobian's ω column switches to its Taylor series below |ω dt| = 0.02.
+#[derive(Debug, Clone, Copy)]
+pub struct CoordinatedTurn {
+    dt: f64,
+}
+
+impl CoordinatedTurn {
+    /// The model for a time step `dt` > 0.
+    pub fn new(dt: f64) -> Result<Self> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(Error::arg("dt", format!("must be a finite number > 0, got {dt}")));
+        }
+        Ok(CoordinatedTurn { dt })
+    }
+}
+
+/// `sin x / x` (1 at 0).
+fn sinc(x: f64) -> f64 {
+    if x == 0.0 {
+        1.0
+    } else {
+        x.sin() / x
+    }
+}
+
+/// (s, c, C, S) of the turn by ω over dt (see [`CoordinatedTurn`]).
+fn turn(w: f64, dt: f64) -> (f64, f64, f64, f64) {
+    let a = w * dt;
+    let half = sinc(a / 2.0);
+    (dt * sinc(a), w * dt * dt / 2.0 * half * half, a.cos(), a.sin())
+}
+
+impl PointFunction for CoordinatedTurn {
+    fn dim_in(&self) -> usize {
+        5
+    }
+
+    fn dim_out(&self) -> usize {
+        5
+    }
+
+    fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        for (x, o) in points.chunks_exact(5).zip(out.chunks_exact_mut(5)).take(k) {
+            let [px, py, vx, vy, w] = [x[0], x[1], x[2], x[3], x[4]];
+            let (s, c, cos, sin) = turn(w, self.dt);
+            o.copy_from_slice(&[
+                px + s * vx - c * vy,
+                py + c * vx + s * vy,
+                cos * vx - sin * vy,
+                sin * vx + cos * vy,
+                w,
+            ]);
+        }
+        Ok(())
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let dt = self.dt;
+        for (x, j) in points.chunks_exact(5).zip(out.chunks_exact_mut(25)).take(k) {
+            let [vx, vy, w] = [x[2], x[3], x[4]];
+            let (s, c, cos, sin) = turn(w, dt);
+            let a = w * dt;
+            // s' = ds/dω and c' = dc/dω: Taylor series near 0 (the closed forms are 0/0 there)
+            let (ds, dc) = if a.abs() < 0.02 {
+                let (t2, w2) = (dt * dt, w * w);
+                (
+                    -w * dt * t2 / 3.0 + w * w2 * t2 * t2 * dt / 30.0 - w * w2 * w2 * t2 * t2 * t2 * dt / 840.0,
+                    t2 / 2.0 - w2 * t2 * t2 / 8.0 + w2 * w2 * t2 * t2 * t2 / 144.0,
+                )
+            } else {
+                let one_minus_cos = 2.0 * (a / 2.0).sin().powi(2);
+                ((a * cos - sin) / (w * w), (a * sin - one_minus_cos) / (w * w))
+            };
+            #[rustfmt::skip]
+            j.copy_from_slice(&[
+                1.0, 0.0, s, -c, ds * vx - dc * vy,
+                0.0, 1.0, c, s, dc * vx + ds * vy,
+                0.0, 0.0, cos, -sin, -dt * (sin * vx + cos * vy),
+                0.0, 0.0, sin, cos, dt * (cos * vx - sin * vy),
+                0.0, 0.0, 0.0, 0.0, 1.0,
+            ]);
+        }
+        Some(Ok(()))
+    }
+}
+
+/// A range–bearing sensor at `sensor` = (s_x, s_y) seeing the position (x₀, x₁) of an n-state:
+/// `y = (r, θ)` with `r = |d|`, `θ = atan2(d_y, d_x)` (the mathematical angle, from the x axis
+/// counter-clockwise, in (−π, π]), `d = (x₀ − s_x, x₁ − s_y)`. The bearing is an angle: declare
+/// it (`angles = [1]`) so that innovations are wrapped.
+#[derive(Debug, Clone, Copy)]
+pub struct RangeBearing {
+    sensor: [f64; 2],
+    n: usize,
+}
+
+impl RangeBearing {
+    /// The sensor at `sensor` for a state of `n ≥ 2` components whose first two are the position.
+    pub fn new(sensor: [f64; 2], n: usize) -> Result<Self> {
+        if sensor.iter().any(|v| !v.is_finite()) {
+            return Err(Error::arg("sensor", format!("must be finite, got {sensor:?}")));
+        }
+        if n < 2 {
+            return Err(Error::arg("n", format!("a range-bearing sensor needs a position (n ≥ 2), got n = {n}")));
+        }
+        Ok(RangeBearing { sensor, n })
+    }
+
+    fn offset(&self, x: &[f64]) -> (f64, f64) {
+        (x[0] - self.sensor[0], x[1] - self.sensor[1])
+    }
+}
+
+impl PointFunction for RangeBearing {
+    fn dim_in(&self) -> usize {
+        self.n
+    }
+
+    fn dim_out(&self) -> usize {
+        2
+    }
+
+    fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        for (x, o) in points.chunks_exact(self.n).zip(out.chunks_exact_mut(2)).take(k) {
+            let (dx, dy) = self.offset(x);
+            o.copy_from_slice(&[dx.hypot(dy), dy.atan2(dx)]);
+        }
+        Ok(())
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let n = self.n;
+        for (x, j) in points.chunks_exact(n).zip(out.chunks_exact_mut(2 * n)).take(k) {
+            let (dx, dy) = self.offset(x);
+            let r2 = dx * dx + dy * dy;
+            if r2.is_nan() || r2 <= 0.0 {
+                return Some(Err(Error::arg_at(
+                    "h",
+                    t,
+                    "the range-bearing Jacobian is undefined at the sensor's position (range 0)",
+                )));
+            }
+            let r = r2.sqrt();
+            j.fill(0.0);
+            j[..2].copy_from_slice(&[dx / r, dy / r]);
+            j[n..n + 2].copy_from_slice(&[-dy / r2, dx / r2]);
+        }
+        Some(Ok(()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ω column of the turn's Jacobian is continuous across the switch to its Taylor
+    /// series and matches differences of the closed form on both sides; at ω = 0 it is the
+    /// constant-velocity limit (−dt² v_y/2, dt² v_x/2, −dt v_y, dt v_x).
+    #[test]
+    fn coordinated_turn_jacobian_near_zero_turn_rate() {
+        let dt = 0.5;
+        let ct = CoordinatedTurn::new(dt).unwrap();
+        let jac = |w: f64| {
+            let mut j = [0.0; 25];
+            ct.jacobian(&[1.0, 2.0, 3.0, -4.0, w], 1, 0, None, &mut j).unwrap().unwrap();
+            [j[4], j[9], j[14], j[19]]
+        };
+        let at0 = jac(0.0);
+        let (vx, vy) = (3.0, -4.0);
+        let want = [-dt * dt * vy / 2.0, dt * dt * vx / 2.0, -dt * vy, dt * vx];
+        for (g, w) in at0.iter().zip(want) {
+            assert!((g - w).abs() < 1e-15, "{at0:?} vs {want:?}");
+        }
+        let switch = 0.02 / dt;
+        let (below, above) = (jac(switch * (1.0 - 1e-12)), jac(switch * (1.0 + 1e-12)));
+        for (b, a) in below.iter().zip(above) {
+            assert!((b - a).abs() < 1e-12 * a.abs().max(1.0), "{below:?} vs {above:?}");
+        }
+        for w in [1e-3, 0.039, 0.041, 0.7] {
+            let h = 1e-6;
+            let f = |w: f64| {
+                let mut o = [0.0; 5];
+                ct.eval(&[1.0, 2.0, 3.0, -4.0, w], 1, 0, None, &mut o).unwrap();
+                o
+            };
+            let (plus, minus) = (f(w + h), f(w - h));
+            let got = jac(w);
+            for i in 0..4 {
+                let diff = (plus[i] - minus[i]) / (2.0 * h);
+                assert!((got[i] - diff).abs() < 1e-7, "w = {w}, row {i}: {} vs {diff}", got[i]);
+            }
+        }
+    }
+}

@@ -1,0 +1,290 @@
+//! `kfast._kfast.NonlinearModel`: f and h given as Python callables (vectorized over a batch of
+//! points) or as built-in Rust models, and the EKF and UKF over a series.
+
+use std::sync::Arc;
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use super::{filter_outputs, parse_form, prior, series, KfastError, OutArrays};
+use crate::error::{Error, Result};
+use crate::linear::model::StepMatrix;
+use crate::nonlinear::models::{CoordinatedTurn, RangeBearing};
+use crate::nonlinear::{self, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints};
+
+type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
+
+/// A Python callable `fn(X, t, u)` with X of shape (k, n), returning (k, dim_out) (and its
+/// Jacobian callable, returning (k, dim_out, n), if given). Called with the GIL taken for the
+/// call; the filters run without it.
+struct PyFunction {
+    name: &'static str,
+    fun: Py<PyAny>,
+    jac: Option<Py<PyAny>>,
+    dim_in: usize,
+    dim_out: usize,
+}
+
+impl PyFunction {
+    /// Calls `callable(X, t, u)` and copies its result, which must have `per_point` numbers
+    /// per point in the shape `shape_tail`, into `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn call(
+        &self,
+        callable: &Py<PyAny>,
+        what: &str,
+        points: &[f64],
+        k: usize,
+        t: usize,
+        u: Option<&[f64]>,
+        shape_tail: &[usize],
+        out: &mut [f64],
+    ) -> Result<()> {
+        Python::attach(|py| {
+            let fail = |problem: String| Error::arg_at(self.name, t, problem);
+            let x = Array2::from_shape_vec((k, self.dim_in), points[..k * self.dim_in].to_vec())
+                .map_err(|e| fail(e.to_string()))?
+                .into_pyarray(py);
+            let u = u.map(|u| numpy::PyArray1::from_slice(py, u));
+            let result =
+                callable.bind(py).call1((x, t, u)).map_err(|e| fail(format!("{what} raised {}", describe(py, &e))))?;
+            let arr = py
+                .import("numpy")
+                .and_then(|np| np.getattr("asarray")?.call1((result, "float64")))
+                .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?))
+                .map_err(|e| fail(format!("{what} did not return an array of numbers ({})", describe(py, &e))))?;
+            let mut want = vec![k];
+            want.extend_from_slice(shape_tail);
+            if arr.shape() != want.as_slice() {
+                return Err(fail(format!(
+                    "{what} returned shape {} for points X of shape ({k}, {}), expected {}",
+                    tuple(arr.shape()),
+                    self.dim_in,
+                    tuple(&want)
+                )));
+            }
+            let arr = arr.readonly();
+            match arr.as_slice() {
+                Ok(values) => out[..values.len()].copy_from_slice(values),
+                Err(_) => {
+                    for (o, v) in out.iter_mut().zip(arr.as_array().iter()) {
+                        *o = *v;
+                    }
+                }
+            }
+            Ok(())
+        })
+    }
+}
+
+/// A shape as Python prints it: `(3, 2)`, `(3,)`.
+fn tuple(shape: &[usize]) -> String {
+    match shape {
+        [one] => format!("({one},)"),
+        _ => format!("({})", shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
+    }
+}
+
+/// `TypeError: message` of a Python exception.
+fn describe(py: Python<'_>, err: &PyErr) -> String {
+    let kind = err.get_type(py).name().map(|n| n.to_string()).unwrap_or_else(|_| "an exception".into());
+    format!("{kind}: {}", err.value(py))
+}
+
+impl PointFunction for PyFunction {
+    fn dim_in(&self) -> usize {
+        self.dim_in
+    }
+
+    fn dim_out(&self) -> usize {
+        self.dim_out
+    }
+
+    fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        self.call(&self.fun, "it", points, k, t, u, &[self.dim_out], out)
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let jac = self.jac.as_ref()?;
+        Some(self.call(jac, "its Jacobian", points, k, t, u, &[self.dim_out, self.dim_in], out))
+    }
+}
+
+/// f or h from Python: a callable, or a built-in given as `(kind, params)`:
+/// `("coordinated_turn", (dt,))`, `("range_bearing", (sx, sy))`, `("linear", A)`.
+fn point_function(
+    name: &'static str,
+    spec: &Bound<'_, PyAny>,
+    jac: Option<&Bound<'_, PyAny>>,
+    n: usize,
+    dim_out: usize,
+) -> PyResult<Arc<dyn PointFunction>> {
+    if let Ok(tuple) = spec.cast::<PyTuple>() {
+        let kind: String = tuple.get_item(0)?.extract()?;
+        let params = tuple.get_item(1)?;
+        let built: Arc<dyn PointFunction> = match kind.as_str() {
+            "coordinated_turn" => Arc::new(CoordinatedTurn::new(params.extract::<(f64,)>()?.0)?),
+            "range_bearing" => {
+                let (sx, sy): (f64, f64) = params.extract()?;
+                Arc::new(RangeBearing::new([sx, sy], n)?)
+            }
+            "linear" => {
+                let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
+                let shape = a.shape().to_vec();
+                let values =
+                    a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))?;
+                Arc::new(LinearMap::new(values.to_vec(), shape[0], shape[1])?)
+            }
+            other => return Err(KfastError::new_err(format!("{name}: unknown built-in model {other:?}"))),
+        };
+        if built.dim_in() != n || built.dim_out() != dim_out {
+            return Err(KfastError::new_err(format!(
+                "{name}: the built-in model maps {} states to {} numbers, expected {n} to {dim_out}",
+                built.dim_in(),
+                built.dim_out()
+            )));
+        }
+        return Ok(built);
+    }
+    if !spec.is_callable() {
+        return Err(KfastError::new_err(format!("{name}: expected a callable f(X, t, u) or a kfast.models built-in")));
+    }
+    Ok(Arc::new(PyFunction {
+        name,
+        fun: spec.clone().unbind(),
+        jac: jac.map(|j| j.clone().unbind()),
+        dim_in: n,
+        dim_out,
+    }))
+}
+
+fn step_matrix(arg: &'static str, arr: &Array<'_>) -> PyResult<StepMatrix> {
+    let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
+    Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
+}
+
+/// The compiled nonlinear model; `kfast.NonlinearModel` wraps it.
+#[pyclass(module = "kfast._kfast", name = "NonlinearModel", frozen)]
+pub(super) struct PyNonlinearModel {
+    inner: nonlinear::NonlinearModel,
+}
+
+#[pymethods]
+impl PyNonlinearModel {
+    #[new]
+    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        f: &Bound<'_, PyAny>,
+        h: &Bound<'_, PyAny>,
+        Q: Array<'_>,
+        R: Array<'_>,
+        n: usize,
+        m: usize,
+        angles: Vec<usize>,
+        jac_f: Option<&Bound<'_, PyAny>>,
+        jac_h: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let f = point_function("f", f, jac_f, n, n)?;
+        let h = point_function("h", h, jac_h, n, m)?;
+        let inner = nonlinear::NonlinearModel::new(f, h, step_matrix("Q", &Q)?, step_matrix("R", &R)?, angles)?;
+        Ok(PyNonlinearModel { inner })
+    }
+
+    /// The extended Kalman filter; a dict of the FilterResult fields named in `outputs`.
+    #[pyo3(signature = (y, x0, P0, outputs, u=None, form="joseph", iterations=0, iteration="book"))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn ekf<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        outputs: Vec<String>,
+        u: Option<Array<'py>>,
+        form: &str,
+        iterations: usize,
+        iteration: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let iteration = match iteration {
+            "book" => Iteration::Book,
+            "gauss-newton" => Iteration::GaussNewton,
+            other => {
+                return Err(KfastError::new_err(format!(
+                    "iteration: expected \"book\" or \"gauss-newton\", got {other:?}"
+                )))
+            }
+        };
+        let options = EkfOptions { form: parse_form(form)?, iterations, iteration };
+        self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
+            nonlinear::ekf_into(model, y, u, x0, p0, options, out)
+        })
+    }
+
+    /// The unscented Kalman filter with the sigma points `(kind, alpha, beta, kappa)`.
+    #[pyo3(signature = (y, x0, P0, outputs, points, u=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn ukf<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        outputs: Vec<String>,
+        points: (String, f64, f64, f64),
+        u: Option<Array<'py>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (kind, alpha, beta, kappa) = points;
+        let points = match kind.as_str() {
+            "merwe" => SigmaPoints::Merwe { alpha, beta, kappa },
+            "julier" => SigmaPoints::Julier { kappa },
+            "cubature" => SigmaPoints::Cubature,
+            other => return Err(KfastError::new_err(format!("points: unknown sigma-point set {other:?}"))),
+        };
+        self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
+            nonlinear::ukf_into(model, y, u, x0, p0, points, out)
+        })
+    }
+}
+
+impl PyNonlinearModel {
+    /// Allocates the outputs, runs `filter` without the GIL, returns the dict of outputs.
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn run<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        u: Option<Array<'py>>,
+        outputs: &[String],
+        filter: impl Fn(
+                &nonlinear::NonlinearModel,
+                crate::Series<'_>,
+                Option<crate::Series<'_>>,
+                &[f64],
+                &[f64],
+                crate::FilterOutputs<'_>,
+            ) -> Result<f64>
+            + Send
+            + Sync,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let (n, m) = (self.inner.n_states(), self.inner.n_obs());
+        let mut out = OutArrays::for_filter(py, y.steps(), n, m, Some(outputs))?;
+        let names = out.names.clone();
+        let mut slices = out.slices()?;
+        let model = &self.inner;
+        let loglik = py.detach(|| filter(model, y, u, x0, p0, filter_outputs(&names, &mut slices)))?;
+        drop(slices);
+        let dict = out.into_dict(py)?;
+        dict.set_item("loglik", loglik)?;
+        Ok(dict)
+    }
+}

@@ -1,0 +1,230 @@
+"""kfast.NonlinearModel's EKF and UKF (Rust) against the NumPy reference, the linear Kalman
+filter and filterpy, with f and h as Python callables and as built-in Rust models."""
+
+import numpy as np
+import pytest
+from modelgen import random_case
+from tracking import DT, ct, ct_jac, ct_one, ct_problem, range_bearing, range_bearing_jac
+
+import kfast
+from kfast.reference import nonlinear as ref
+
+FIELDS = ("x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "loglik_t", "x_next", "P_next")
+
+
+def assert_close(res, want, rtol=1e-10, atol=1e-10, fields=FIELDS):
+    for k in fields:
+        got = getattr(res, k)
+        np.testing.assert_allclose(got, want[k], rtol=rtol, atol=atol, err_msg=k)
+    assert res.loglik == pytest.approx(want["loglik"], rel=rtol, abs=atol)
+
+
+def linear_callables(F, H):
+    return (lambda X, t, u: X @ F.T), (lambda X, t, u: X @ H.T)
+
+
+@pytest.mark.parametrize("seed, n, m, missing", [(11, 1, 1, "none"), (12, 4, 2, "partial"), (13, 6, 3, "rows")])
+def test_on_a_linear_model_every_filter_is_the_kalman_filter(seed, n, m, missing):
+    c = random_case(seed, n, m, T=40, missing=missing)
+    lg = kfast.LinearGaussian(**c.model)
+    F, H, Q, R = (c.model[k] for k in "FHQR")
+    f, h = linear_callables(F, H)
+    models = [kfast.NonlinearModel.from_linear(lg), kfast.NonlinearModel(f, h, Q, R, n=n)]
+    joseph = lg.filter(c.y, c.x0, c.P0)
+    standard = lg.filter(c.y, c.x0, c.P0, form="standard")
+    fields = [k for k in FIELDS if k not in ("innov",)]
+    for nm, tol in zip(models, (1e-10, 1e-7)):  # the callables' Jacobians are differenced
+        for kw in ({}, {"iterations": 2}, {"iterations": 2, "iteration": "gauss-newton"}):
+            res = nm.ekf(c.y, c.x0, c.P0, **kw)
+            for k in fields:
+                np.testing.assert_allclose(getattr(res, k), getattr(joseph, k), rtol=tol, atol=tol, err_msg=(k, kw))
+        for points in (kfast.sigma.merwe(), kfast.sigma.julier(kappa=1.0), kfast.sigma.cubature()):
+            res = nm.ukf(c.y, c.x0, c.P0, points=points)
+            for k in fields:
+                np.testing.assert_allclose(getattr(res, k), getattr(standard, k), rtol=1e-9, atol=1e-9, err_msg=(k, points))
+            assert res.loglik == pytest.approx(standard.loglik, rel=1e-10)
+    np.testing.assert_array_equal(np.isnan(res.innov), np.isnan(standard.innov))
+
+
+def ct_models():
+    Q, R, y, x0, P0 = ct_problem(T=60)
+    builtin = kfast.NonlinearModel(
+        kfast.models.coordinated_turn(DT, q=1.0, sigma_omega=0.05), kfast.models.range_bearing((0.0, 0.0)), Q, R, n=5
+    )
+    python = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, jac_f=ct_jac, jac_h=range_bearing_jac, angles=[1])
+    return builtin, python, Q, R, y, x0, P0
+
+
+def test_builtin_coordinated_turn_and_radar_equal_the_same_model_as_python_callables():
+    builtin, python, Q, R, y, x0, P0 = ct_models()
+    np.testing.assert_allclose(builtin.Q, Q, rtol=1e-15)
+    differenced = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[1])
+    for run in (lambda m: m.ukf(y, x0, P0, points=kfast.sigma.merwe(0.5)), lambda m: m.ekf(y, x0, P0)):
+        a, b, c = run(builtin), run(python), run(differenced)
+        for k in FIELDS:
+            # the NumPy model computes 1 - cos(w dt) with cancellation (~1e-12 relative here)
+            np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-8, atol=1e-8, err_msg=k)
+            # Jacobians by differences (about 1e-10 relative) against the closed form
+            np.testing.assert_allclose(getattr(c, k), getattr(b, k), rtol=1e-6, atol=1e-7, err_msg=k)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{}, {"iterations": 2}, {"iterations": 3, "iteration": "gauss-newton"}, {"form": "standard"}],
+)
+def test_ekf_equals_the_reference(kw):
+    _, python, Q, R, y, x0, P0 = ct_models()
+    y = y.copy()
+    y[5, 0] = np.nan
+    y[9] = np.nan
+    form = kw.pop("form", "joseph")
+    want = ref.ekf(ct, range_bearing, Q, R, y, x0, P0, ct_jac, range_bearing_jac, angles=[1], form=form, **kw)
+    assert_close(python.ekf(y, x0, P0, form=form, **kw), want, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("points", ["merwe", "merwe-small-alpha", "julier", "cubature"])
+def test_ukf_equals_the_reference(points):
+    _, python, Q, R, y, x0, P0 = ct_models()
+    y = y.copy()
+    y[7, 1] = np.nan
+    mine, theirs = {
+        "merwe": (kfast.sigma.merwe(0.5, 2.0, 0.0), ref.merwe(0.5, 2.0, 0.0)),
+        "merwe-small-alpha": (kfast.sigma.merwe(), ref.merwe()),
+        "julier": (kfast.sigma.julier(kappa=1.0), ref.julier(kappa=1.0)),
+        "cubature": (kfast.sigma.cubature(), ref.cubature()),
+    }[points]
+    want = ref.ukf(ct, range_bearing, Q, R, y, x0, P0, points=theirs, angles=[1])
+    # alpha = 1e-3 puts the points 1e-3 standard deviations apart: the mean's second-order term
+    # d = sum W_i (h(X_i) - h(X_0)) is then a second difference with that step, which rounding
+    # alone moves by ~1e-7 relative (the same in any implementation); the others agree to 1e-9
+    tol = 1e-4 if points == "merwe-small-alpha" else 1e-9
+    assert_close(python.ukf(y, x0, P0, points=mine), want, rtol=tol, atol=tol)
+
+
+def test_ukf_equals_filterpy():
+    filterpy = pytest.importorskip("filterpy.kalman")
+    builtin, _, Q, R, y, x0, P0 = ct_models()
+    points = filterpy.MerweScaledSigmaPoints(5, alpha=0.5, beta=2.0, kappa=0.0)
+    kf = filterpy.UnscentedKalmanFilter(
+        dim_x=5, dim_z=2, dt=DT, fx=lambda x, dt: ct_one(x), hx=lambda x: range_bearing(x[None], 0, None)[0], points=points
+    )
+    kf.x, kf.P, kf.Q, kf.R = x0.copy(), P0.copy(), Q, R
+    kf.sigmas_f = points.sigma_points(x0, P0)  # filterpy predicts first: give it the prior's points
+    x_filt = []
+    for t in range(len(y)):
+        if t:
+            kf.predict()
+        kf.update(y[t])
+        x_filt.append(kf.x.copy())
+    res = builtin.ukf(y, x0, P0, points=kfast.sigma.merwe(0.5, 2.0, 0.0))
+    np.testing.assert_allclose(res.x_filt, x_filt, rtol=1e-8, atol=1e-8)
+
+
+def test_bearings_across_the_negative_x_axis_are_wrapped():
+    """A target passing behind the sensor along y = 0, x < 0: the bearing jumps from pi to -pi.
+    With the bearing declared an angle the innovations stay small; the filter tracks."""
+    T = 40
+    truth = np.stack([np.full(T, -50.0), np.linspace(3, -3, T), np.zeros(T), np.full(T, -1.5), np.zeros(T)], axis=1)
+    y = np.stack([np.hypot(truth[:, 0], truth[:, 1]), np.arctan2(truth[:, 1], truth[:, 0])], axis=1)
+    R = np.diag([0.1, 1e-4])
+    Q = np.diag([1e-4, 1e-4, 1e-2, 1e-2, 1e-8])
+    model = kfast.NonlinearModel(kfast.models.coordinated_turn(1.0), kfast.models.range_bearing(), Q, R, n=5)
+    P0 = np.diag([1.0, 1.0, 1.0, 1.0, 1e-6])
+    for res in (model.ekf(y, truth[0], P0), model.ukf(y, truth[0], P0, points=kfast.sigma.merwe(0.5))):
+        assert np.all(np.abs(res.innov[:, 1]) < 0.05)
+        np.testing.assert_allclose(res.x_filt[:, :2], truth[:, :2], atol=0.5)
+
+
+def test_the_prior_and_the_data_are_not_modified():
+    builtin, _, Q, R, y, x0, P0 = ct_models()
+    copies = [a.copy() for a in (y, x0, P0)]
+    builtin.ukf(y, x0, P0)
+    builtin.ekf(y, x0, P0, iterations=1)
+    for a, b in zip((y, x0, P0), copies):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_ekf_outputs_and_k_pred():
+    builtin, _, Q, R, y, x0, P0 = ct_models()
+    res = builtin.ekf(y, x0, P0, outputs=("x_filt",))
+    assert res.P_filt is None and res.x_filt.shape == (len(y), 5)
+    with pytest.raises(kfast.KfastError, match="K_pred"):
+        builtin.ekf(y, x0, P0, outputs="K_pred")
+
+
+# ----------------------------------------------------------------------------------------------
+# Bad input: clear errors naming the function or argument and the step
+# ----------------------------------------------------------------------------------------------
+
+
+def test_callables_that_misbehave_are_named_with_the_step():
+    Q, R, y, x0, P0 = ct_problem(T=10)
+
+    def nan_at_step_3(X, t, u):
+        out = range_bearing(X, t, u)
+        return out * np.nan if t == 3 else out
+
+    cases = [
+        (lambda X, t, u: X[:, :4], range_bearing, r"f at step 0: it returned shape \(\d+, 4\) for points X of shape \(\d+, 5\), expected \(\d+, 5\)"),
+        (ct, lambda X, t, u: range_bearing(X, t, u)[:, :1], r"h at step 0: .*shape"),
+        (ct, nan_at_step_3, r"h at step 3: returned a non-finite value"),
+        (ct, lambda X, t, u: 1 / 0, r"h at step 0: it raised ZeroDivisionError"),
+        (ct, lambda X, t, u: "text", r"h at step 0: it did not return an array of numbers"),
+    ]
+    for f, h, match in cases:
+        model = kfast.NonlinearModel(f, h, Q, R, n=5, angles=[1])
+        for run in (model.ekf, model.ukf):
+            with pytest.raises(kfast.KfastError, match=match):
+                run(y, x0, P0)
+
+
+def test_bad_model_arguments():
+    Q, R, y, x0, P0 = ct_problem(T=5)
+    ct_builtin = kfast.models.coordinated_turn(DT)
+    with pytest.raises(kfast.KfastError, match="angles"):
+        kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[2])
+    with pytest.raises(kfast.KfastError, match="angles"):
+        kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[-1])
+    with pytest.raises(kfast.KfastError, match="Q: not positive semidefinite"):
+        kfast.NonlinearModel(ct, range_bearing, -Q, R, n=5)
+    with pytest.raises(kfast.KfastError, match="f: the built-in model maps 5 states"):
+        kfast.NonlinearModel(ct_builtin, range_bearing, np.eye(4), R, n=4)
+    with pytest.raises(kfast.KfastError, match="jac_f: the built-in f has its own Jacobian"):
+        kfast.NonlinearModel(ct_builtin, range_bearing, Q, R, n=5, jac_f=lambda X, t, u: X)
+    with pytest.raises(kfast.KfastError, match="h: expected a callable"):
+        kfast.NonlinearModel(ct, 3.0, Q, R, n=5)
+    with pytest.raises(kfast.KfastError, match="dt"):
+        kfast.models.coordinated_turn(0.0)
+    with pytest.raises(kfast.KfastError, match="sensor"):
+        kfast.models.range_bearing((0.0, np.inf))
+    model = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[1])
+    with pytest.raises(kfast.KfastError, match="iteration"):
+        model.ekf(y, x0, P0, iterations=1, iteration="newton")
+    with pytest.raises(kfast.KfastError, match="P0"):
+        model.ekf(y, x0, -P0)
+    with pytest.raises(kfast.KfastError, match="y"):
+        model.ukf(y[:, :1], x0, P0)
+    with pytest.raises(kfast.KfastError, match="points"):
+        model.ukf(y, x0, P0, points=kfast.sigma.merwe(alpha=0.0))
+    with pytest.raises(kfast.KfastError, match=r"y at step 2: .*inf"):
+        bad = y.copy()
+        bad[2, 0] = np.inf
+        model.ukf(bad, x0, P0)
+
+
+def test_a_covariance_that_is_not_positive_definite_names_the_step():
+    """A singular prior has no sigma points: the UKF says which covariance and which step."""
+    Q, R, y, x0, P0 = ct_problem(T=5)
+    P0 = P0.copy()
+    P0[4, 4] = 0.0
+    model = kfast.NonlinearModel(kfast.models.coordinated_turn(DT), kfast.models.range_bearing(), Q, R, n=5)
+    with pytest.raises(kfast.KfastError, match=r"P\(t\|t-1\) at step 0 is not positive definite"):
+        model.ukf(y, x0, P0)
+    model.ekf(y, x0, P0)  # the EKF needs no square root
+
+
+def test_the_radar_at_the_target_is_refused():
+    Q, R, y, x0, P0 = ct_problem(T=5)
+    model = kfast.NonlinearModel(kfast.models.coordinated_turn(DT), kfast.models.range_bearing((100.0, 50.0)), Q, R, n=5)
+    with pytest.raises(kfast.KfastError, match="h at step 0: the range-bearing Jacobian is undefined"):
+        model.ekf(y, x0, P0)
