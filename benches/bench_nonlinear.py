@@ -10,8 +10,9 @@
 - N1b: the same UKF on the 4-state CV model of W1 (``NonlinearModel.from_linear``).
 - N2: EKF with analytic Jacobians on CT; kfast's linear filter at n = 5, m = 2 beside it.
 
-kfast runs each with the built-in Rust model and with the model as a vectorized Python
-callable (one call per step for all points). filterpy's UKF and EKF run the same model with its
+kfast runs each with the built-in Rust model, with the model compiled from C
+(benches/c/ct_radar.c, gcc -O3, passed as ctypes function pointers: the path a numba @cfunc
+takes) and with the model as a vectorized Python callable (one call per step for all points). filterpy's UKF and EKF run the same model with its
 per-point Python functions (a short series: it is slow); its UKF is given the prior's sigma
 points for its first update, since it predicts first. Every contender's x_filt is checked
 against kfast's built-in run on the same steps. Contenders run interleaved; medians.
@@ -136,6 +137,26 @@ def filterpy_ekf(ct, y):
     return run
 
 
+def compiled_model(ct):
+    """CT and the radar compiled from benches/c/ct_radar.c, or None without a C compiler."""
+    import ctypes
+    import shutil
+    import subprocess
+    import tempfile
+
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        return None
+    so = os.path.join(tempfile.mkdtemp(), "ct_radar.so")
+    src = os.path.join(os.path.dirname(__file__), "c", "ct_radar.c")
+    subprocess.run([cc, "-O3", "-shared", "-fPIC", "-o", so, src, "-lm"], check=True)
+    lib = ctypes.CDLL(so)
+    double_p = ctypes.POINTER(ctypes.c_double)
+    proto = ctypes.CFUNCTYPE(None, double_p, ctypes.c_ssize_t, ctypes.c_ssize_t, ctypes.c_int64, double_p, double_p)
+    f, h = proto(("ct", lib)), proto(("radar", lib))
+    return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1])  # f, h keep the library loaded
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
@@ -149,6 +170,7 @@ def main(argv=None):
         ct_batch, rb_batch, ct.Q, R, n=5, jac_f=lambda X, t, u: np.array([ct_jac_one(x) for x in X]),
         jac_h=lambda X, t, u: np.array([rb_jac_one(x) for x in X]), angles=[1],
     )
+    compiled = compiled_model(ct)
     merwe = kfast.sigma.merwe(0.5, 2.0, 0.0)
     out = ("x_filt", "P_filt")
     cv = kfast.models.constant_velocity(2, DT, q=1.0, r=1.0)
@@ -158,6 +180,7 @@ def main(argv=None):
     workloads = {
         "N1: UKF on CT (Merwe 0.5, 2, 0)": [
             Contender("kfast built-in", lambda: builtin.ukf(y, X0, P0, points=merwe, outputs=out), T),
+            Contender("kfast compiled C (cfunc path)", lambda: compiled.ukf(y, X0, P0, points=merwe, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ukf(y[:T_py], X0, P0, points=merwe, outputs=out), T_py),
             Contender("filterpy UKF", filterpy_ukf(ct, y[:T_peer]), T_peer),
         ],
@@ -167,6 +190,7 @@ def main(argv=None):
         ],
         "N2: EKF on CT (analytic Jacobians)": [
             Contender("kfast built-in", lambda: builtin.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast compiled C (cfunc path; differenced Jacobians)", lambda: compiled.ekf(y, X0, P0, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ekf(y[:T_py], X0, P0, outputs=out), T_py),
             Contender("filterpy EKF", filterpy_ekf(ct, y[:T_peer]), T_peer),
             Contender("kfast linear filter, n = 5, m = 2", lambda: lin5.filter(y, X0, P0, outputs=out), T),
@@ -181,6 +205,14 @@ def main(argv=None):
         "N1": [("kfast Python callable", python.ukf(y[:T_py], X0, P0, points=merwe).x_filt), ("filterpy UKF", filterpy_ukf(ct, y[:T_peer])())],
         "N2": [("kfast Python callable", python.ekf(y[:T_py], X0, P0).x_filt), ("filterpy EKF", filterpy_ekf(ct, y[:T_peer])())],
     }
+    if compiled is None:
+        for contenders in workloads.values():
+            for c in contenders:
+                if "compiled" in c.name:
+                    c.error = "no C compiler"
+    else:
+        checks["N1"].insert(0, ("kfast compiled C", compiled.ukf(y, X0, P0, points=merwe).x_filt))
+        checks["N2"].insert(0, ("kfast compiled C", compiled.ekf(y, X0, P0).x_filt))
     for name, contenders in workloads.items():
         run_interleaved(contenders, rounds)
         base = contenders[0]

@@ -166,6 +166,8 @@ class NonlinearModel:
         angles: list[int],
         jac_f: Optional[Any] = None,
         jac_h: Optional[Any] = None,
+        hess_f: Optional[Any] = None,
+        hess_h: Optional[Any] = None,
     ) -> None: ...
     def ekf(
         self,
@@ -177,6 +179,7 @@ class NonlinearModel:
         form: Form = "joseph",
         iterations: int = 0,
         iteration: Iteration = "book",
+        order: int = 1,
     ) -> dict[str, Any]: ...
     def ukf(
         self,
@@ -186,6 +189,19 @@ class NonlinearModel:
         outputs: list[str],
         points: tuple[str, float, float, float],
         u: Optional[NDArray[np.float64]] = None,
+    ) -> dict[str, Any]: ...
+    def smooth(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        method: str,
+        points: tuple[str, float, float, float],
+        u: Optional[NDArray[np.float64]] = None,
+        form: Form = "joseph",
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        order: int = 1,
     ) -> dict[str, Any]: ...
 
 class KalmanFilter:

@@ -77,7 +77,10 @@ pub use linear::smoother::{
     smooth, smooth_fixed_lag, smooth_fixed_point, smooth_into, FixedLagOptions, FixedLagResult, FixedLagSmoother,
     FixedPointResult, SmoothOutputs, SmootherResult,
 };
-pub use nonlinear::{ekf_into, ukf_into, EkfOptions, Iteration, NonlinearModel, PointFunction, SigmaPoints};
+pub use nonlinear::{
+    ekf_into, smooth_nonlinear_into, ukf_into, EkfOptions, Iteration, NonlinearModel, PointFunction, SigmaPoints,
+    SmoothMethod,
+};
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,
     stationary_covariance, DareMethod, RiccatiProblem, RiccatiSolution,

@@ -94,7 +94,7 @@ fn on_a_linear_model_the_nonlinear_filters_are_the_kalman_filter() {
     for form in [UpdateForm::Joseph, UpdateForm::Standard] {
         let want = filter(&linear(), series(), None, &X0, &P0, form).unwrap();
         for (iterations, iteration) in [(0, Iteration::Book), (2, Iteration::Book), (2, Iteration::GaussNewton)] {
-            let options = EkfOptions { form, iterations, iteration };
+            let options = EkfOptions { form, iterations, iteration, ..Default::default() };
             let got = run(|out| ekf_into(&model, series(), None, &X0, &P0, options, out));
             assert_same(&got, &want, 1e-10);
         }

@@ -46,6 +46,35 @@ def test_on_a_linear_model_every_filter_is_the_kalman_filter(seed, n, m, missing
     np.testing.assert_array_equal(np.isnan(res.innov), np.isnan(standard.innov))
 
 
+@pytest.mark.parametrize("missing", ["none", "partial"])
+def test_on_a_linear_model_both_smoothers_are_rts(missing):
+    c = random_case(21, 4, 2, T=35, missing=missing)
+    lg = kfast.LinearGaussian(**c.model)
+    want = lg.smooth(c.y, c.x0, c.P0)
+    for nm in (kfast.NonlinearModel.from_linear(lg), kfast.NonlinearModel(*linear_callables(c.model["F"], c.model["H"]), c.model["Q"], c.model["R"], n=4)):
+        for method in ("ekf", "ukf"):
+            got = nm.smooth(c.y, c.x0, c.P0, method=method)
+            for k in ("x_smooth", "P_smooth", "P_lag1"):
+                np.testing.assert_allclose(getattr(got, k), getattr(want, k), rtol=1e-7, atol=1e-7, err_msg=(k, method))
+            np.testing.assert_allclose(got.filter.x_filt, want.filter.x_filt, rtol=1e-7, atol=1e-7)
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf"])
+def test_smoothers_equal_the_reference(method):
+    _, python, Q, R, y, x0, P0 = ct_models()
+    y = y.copy()
+    y[4] = np.nan
+    if method == "ekf":
+        xs, Ps, _ = ref.extended_rts(ct, range_bearing, Q, R, y, x0, P0, ct_jac, range_bearing_jac, angles=[1])
+        got = python.smooth(y, x0, P0, method="ekf")
+    else:
+        xs, Ps, _ = ref.unscented_rts(ct, range_bearing, Q, R, y, x0, P0, points=ref.merwe(0.5), angles=[1])
+        got = python.smooth(y, x0, P0, method="ukf", points=kfast.sigma.merwe(0.5))
+    np.testing.assert_allclose(got.x_smooth, xs, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(got.P_smooth, Ps, rtol=1e-9, atol=1e-9)
+    assert np.all(np.diagonal(got.P_smooth, axis1=1, axis2=2) <= np.diagonal(got.filter.P_filt, axis1=1, axis2=2) + 1e-12)
+
+
 def ct_models():
     Q, R, y, x0, P0 = ct_problem(T=60)
     builtin = kfast.NonlinearModel(
@@ -228,3 +257,153 @@ def test_the_radar_at_the_target_is_refused():
     model = kfast.NonlinearModel(kfast.models.coordinated_turn(DT), kfast.models.range_bearing((100.0, 50.0)), Q, R, n=5)
     with pytest.raises(kfast.KfastError, match="h at step 0: the range-bearing Jacobian is undefined"):
         model.ekf(y, x0, P0)
+
+
+# ----------------------------------------------------------------------------------------------
+# Second-order EKF: Söderström section 9.2.4 and Example 9.1 (tests/data/textbook_cases.json)
+# ----------------------------------------------------------------------------------------------
+
+
+def test_g1_second_order_ekf_closed_form():
+    """(9.28)-(9.31) through the Rust filter: x(0|0) = K y, z = x(1|0) = x(0|0)^2 (EKF) and
+    x(0|0)^2 + P(0|0) (second order), with the Hessian given and differenced."""
+    a = 1.0
+    for b in (0.3, 2.0):
+        K, P00 = a**2 / (a**2 + b**2), a**2 * b**2 / (3 * (a**2 + b**2))
+        y = np.array([[0.4], [0.0]])  # the second step only carries x(1|0) forward
+        kw = dict(Q=[[0.0]], R=[[b**2 / 3]], n=1)
+        square = kfast.NonlinearModel(lambda X, t, u: X**2, lambda X, t, u: X, **kw)
+        given = kfast.NonlinearModel(
+            lambda X, t, u: X**2, lambda X, t, u: X, hess_f=lambda X, t, u: np.full((len(X), 1, 1, 1), 2.0), **kw
+        )
+        first = square.ekf(y, [0.0], [[a**2 / 3]])
+        assert first.x_filt[0, 0] == pytest.approx(K * 0.4, rel=1e-12)
+        assert first.P_filt[0, 0, 0] == pytest.approx(P00, rel=1e-12)
+        assert first.x_pred[1, 0] == pytest.approx((K * 0.4) ** 2, rel=1e-12)
+        assert given.ekf(y, [0.0], [[a**2 / 3]], order=2).x_pred[1, 0] == pytest.approx((K * 0.4) ** 2 + P00, rel=1e-12)
+        assert square.ekf(y, [0.0], [[a**2 / 3]], order=2).x_pred[1, 0] == pytest.approx((K * 0.4) ** 2 + P00, rel=1e-7)
+
+
+def test_g2_example_9_1_corrections_through_rust():
+    def f(X, t, u):
+        return np.stack([X[:, 0] ** 2 + X[:, 1], X[:, 0] * np.exp(-X[:, 1])], axis=1)
+
+    H = np.array([[1.0, 0.5]])
+    model = kfast.NonlinearModel(f, lambda X, t, u: X @ H.T, 0.1 * np.eye(2), [[0.5]], n=2)
+    res = model.ekf([[1.1]], [0.7, -0.3], [[0.4, 0.1], [0.1, 0.3]], order=2)
+    x, P = res.x_filt[0], res.P_filt[0]
+    f_bar = np.array([P[0, 0], 0.5 * np.exp(-x[1]) * (x[0] * P[1, 1] - 2 * P[0, 1])])
+    np.testing.assert_allclose(res.x_next, f(x[None], 0, None)[0] + f_bar, rtol=1e-7, atol=1e-9)
+
+
+def test_second_order_ekf_equals_the_reference():
+    """With the Hessians given, to rounding; differenced, loosely: a second difference with the
+    step eps^(1/4) moves by ~1e-8 relative for a 1-ulp change of its point, so the two
+    implementations, bitwise equal for the first steps, drift apart by ~1e-6 later."""
+    _, python, Q, R, y, x0, P0 = ct_models()
+
+    def hess_h(X, t, u):  # range and bearing: closed-form Hessians in (px, py)
+        Hs = np.zeros((len(X), 2, 5, 5))
+        px, py = X[:, 0], X[:, 1]
+        r2 = px**2 + py**2
+        r3 = r2 ** 1.5
+        Hs[:, 0, 0, 0], Hs[:, 0, 1, 1], Hs[:, 0, 0, 1] = py**2 / r3, px**2 / r3, -px * py / r3
+        Hs[:, 1, 0, 0], Hs[:, 1, 1, 1], Hs[:, 1, 0, 1] = 2 * px * py / r2**2, -2 * px * py / r2**2, (py**2 - px**2) / r2**2
+        Hs[:, :, 1, 0] = Hs[:, :, 0, 1]
+        return Hs
+
+    def hess_f(X, t, u):  # a Hessian that is not the model's: what matters is that both use it
+        return np.broadcast_to(np.eye(5) * 1e-3, (len(X), 5, 5, 5)).copy()
+
+    given = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, jac_f=ct_jac, jac_h=range_bearing_jac, hess_f=hess_f, hess_h=hess_h, angles=[1])
+    want = ref.ekf(ct, range_bearing, Q, R, y, x0, P0, ct_jac, range_bearing_jac, angles=[1], order=2, hess_f=hess_f, hess_h=hess_h)
+    assert_close(given.ekf(y, x0, P0, order=2), want, rtol=1e-9, atol=1e-9)
+    want = ref.ekf(ct, range_bearing, Q, R, y, x0, P0, ct_jac, range_bearing_jac, angles=[1], order=2)
+    assert_close(python.ekf(y, x0, P0, order=2), want, rtol=1e-4, atol=1e-4)
+    with pytest.raises(kfast.KfastError, match="order"):
+        python.ekf(y, x0, P0, order=2, iterations=1)
+    with pytest.raises(kfast.KfastError, match="order"):
+        python.ekf(y, x0, P0, order=3)
+
+
+# ----------------------------------------------------------------------------------------------
+# Compiled callables: C functions of the documented signature, through ctypes and scipy
+# ----------------------------------------------------------------------------------------------
+
+C_MODEL = r"""
+#include <math.h>
+#include <stdint.h>
+void ct(const double *X, intptr_t k, intptr_t n, int64_t t, const double *u, double *out) {
+    const double dt = 0.1;
+    for (intptr_t i = 0; i < k; i++) {
+        const double *x = X + i * n; double *o = out + i * n;
+        double w = x[4], S = sin(w * dt), C = cos(w * dt);
+        double s = fabs(w) < 1e-9 ? dt : S / w, c = fabs(w) < 1e-9 ? 0.0 : (1 - C) / w;
+        o[0] = x[0] + s * x[2] - c * x[3]; o[1] = x[1] + c * x[2] + s * x[3];
+        o[2] = C * x[2] - S * x[3]; o[3] = S * x[2] + C * x[3]; o[4] = w;
+    }
+}
+void radar(const double *X, intptr_t k, intptr_t n, int64_t t, const double *u, double *out) {
+    for (intptr_t i = 0; i < k; i++) {
+        out[2 * i] = hypot(X[i * n], X[i * n + 1]);
+        out[2 * i + 1] = atan2(X[i * n + 1], X[i * n]);
+    }
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def c_library(tmp_path_factory):
+    import ctypes
+    import shutil
+    import subprocess
+
+    compiler = shutil.which("gcc") or shutil.which("cc")
+    if compiler is None:
+        pytest.fail("a C compiler is needed to build the compiled-callable test model")
+    d = tmp_path_factory.mktemp("cmodel")
+    (d / "model.c").write_text(C_MODEL)
+    subprocess.run([compiler, "-O2", "-shared", "-fPIC", "-o", str(d / "model.so"), str(d / "model.c"), "-lm"], check=True)
+    lib = ctypes.CDLL(str(d / "model.so"))
+    proto = ctypes.CFUNCTYPE(
+        None, ctypes.POINTER(ctypes.c_double), ctypes.c_ssize_t, ctypes.c_ssize_t, ctypes.c_int64,
+        ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+    )
+    return lib, proto
+
+
+def test_compiled_callables_equal_python_callables_and_the_reference(c_library):
+    import scipy
+
+    lib, proto = c_library
+    _, python, Q, R, y, x0, P0 = ct_models()
+    f_c, h_c = proto(("ct", lib)), proto(("radar", lib))
+    variants = [(f_c, h_c), (scipy.LowLevelCallable(f_c), scipy.LowLevelCallable(h_c))]
+    for f, h in variants:
+        compiled = kfast.NonlinearModel(f, h, Q, R, n=5, angles=[1])
+        plain = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[1])
+        for run in (lambda m: m.ukf(y, x0, P0, points=kfast.sigma.merwe(0.5)), lambda m: m.ekf(y, x0, P0)):
+            a, b = run(compiled), run(plain)
+            # C's sin and cos (libm) and NumPy's differ by an ulp now and then; the weakly
+            # observed turn rate amplifies that to ~1e-9 absolute over 60 steps
+            for k in FIELDS:
+                np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-7, atol=1e-8, err_msg=k)
+    want = ref.ukf(ct, range_bearing, Q, R, y, x0, P0, points=ref.merwe(0.5), angles=[1])
+    compiled = kfast.NonlinearModel(f_c, h_c, Q, R, n=5, angles=[1])
+    assert_close(compiled.ukf(y, x0, P0, points=kfast.sigma.merwe(0.5)), want, rtol=1e-7, atol=1e-8)
+
+
+def test_a_compiled_callable_with_another_signature_is_refused(c_library):
+    import ctypes
+
+    import scipy
+
+    lib, _ = c_library
+    Q, R, y, x0, P0 = ct_problem(T=5)
+    wrong = ctypes.CFUNCTYPE(None, ctypes.POINTER(ctypes.c_double), ctypes.c_int, ctypes.c_int, ctypes.c_int64,
+                             ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double))(("ct", lib))
+    returns = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.c_ssize_t, ctypes.c_ssize_t,
+                               ctypes.c_int64, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double))(("ct", lib))
+    for bad in (wrong, returns, scipy.LowLevelCallable(wrong)):
+        with pytest.raises(kfast.KfastError, match="f: the .*signature .* is not"):
+            kfast.NonlinearModel(bad, range_bearing, Q, R, n=5)

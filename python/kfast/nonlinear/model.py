@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence, Union, cast
 
@@ -12,7 +13,7 @@ from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import FilterOutputs, Form, Iteration
-from kfast.linear.model import FilterResult, _column_if_1d, _output_names
+from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
 from kfast.sigma import SigmaPoints, merwe
 
 if TYPE_CHECKING:
@@ -58,7 +59,13 @@ class NonlinearModel:
         shape (k, n) (one point per row), t the integer step and u the input row u[t] (None
         without inputs), returning shape (k, n) for f and (k, m) for h -- the filter calls it
         once per step for all its points (one sigma-point set, or the 2n points of a difference
-        Jacobian) -- or a built-in model from :mod:`kfast.models`, which runs in Rust.
+        Jacobian) -- or a built-in model from :mod:`kfast.models`, which runs in Rust -- or a
+        compiled function of the C signature ``C_SIGNATURE`` (a numba ``@cfunc``, a
+        ``scipy.LowLevelCallable`` or a ctypes function pointer), which the Rust loop calls
+        directly without the GIL: ``void f(const double *X, intptr_t k, intptr_t n, int64_t t,
+        const double *u, double *out)`` with X the k points (k x n, row-major), u the input row
+        (NULL without inputs) and out the k results (k x n for f, k x m for h). A signature that
+        does not match is refused; the function itself is trusted (it must not write past out).
     Q : array_like, shape (n, n) or (T, n, n)
         Process noise covariance (Q[t] takes x[t] to x[t+1]); may be singular, even 0.
     R : array_like, shape (m, m) or (T, m, m)
@@ -69,6 +76,10 @@ class NonlinearModel:
         Jacobians, batched like f and h: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n).
         Without them the EKF uses central differences, column j with step
         eps^(1/3) max(|x_j|, 1), all 2n points in one call of f or h.
+    hess_f, hess_h : callable, optional
+        Hessians for the second-order EKF (``ekf(order=2)``), one n x n matrix per output:
+        ``hess_f(X, t, u)`` -> (k, n, n, n), ``hess_h`` -> (k, m, n, n). Without them, second
+        central differences with step eps^(1/4) max(|x_j|, 1), all 1 + 2n^2 points in one call.
     angles : sequence of int, optional
         The components of y that are angles (radians): their innovations, differences and
         sigma-point deviations are wrapped to [-pi, pi), so a bearing crossing +-pi does not
@@ -97,6 +108,8 @@ class NonlinearModel:
         jac_f: Optional[Callable[..., ArrayLike]] = None,
         jac_h: Optional[Callable[..., ArrayLike]] = None,
         angles: Sequence[int] = (),
+        hess_f: Optional[Callable[..., ArrayLike]] = None,
+        hess_h: Optional[Callable[..., ArrayLike]] = None,
     ) -> None:
         self.n_states: int = index("n", n)
         if self.n_states == 0:
@@ -106,16 +119,20 @@ class NonlinearModel:
         if self.R.ndim not in (2, 3):
             raise _kfast.KfastError(f"R: expected shape (m, m) or (T, m, m), got {self.R.shape}")
         self.n_obs: int = self.R.shape[-1]
-        given = tuple(angles) if not isinstance(h, BuiltinFunction) or angles else h.angles
-        self.angles: tuple[int, ...] = _angles(given, self.n_obs)
-        for name, fn, jac in (("f", f, jac_f), ("h", h, jac_h)):
-            if jac is not None and not callable(jac):
-                raise _kfast.KfastError(f"jac_{name}: expected a callable, got {type(jac).__name__}")
-            if jac is not None and isinstance(fn, BuiltinFunction):
-                raise _kfast.KfastError(f"jac_{name}: the built-in {name} has its own Jacobian")
+        declared = tuple(angles) if not isinstance(h, BuiltinFunction) or angles else h.angles
+        self.angles: tuple[int, ...] = _angles(declared, self.n_obs)
+        for name, fn, what, given in (
+            ("jac_f", f, "Jacobian", jac_f), ("jac_h", h, "Jacobian", jac_h),
+            ("hess_f", f, "Hessians", hess_f), ("hess_h", h, "Hessians", hess_h),
+        ):
+            if given is not None and not callable(given):
+                raise _kfast.KfastError(f"{name}: expected a callable, got {type(given).__name__}")
+            if given is not None and isinstance(fn, BuiltinFunction):
+                raise _kfast.KfastError(f"{name}: the built-in {name[-1]} has its own {what}")
         self.f, self.h = f, h
         self._core = _kfast.NonlinearModel(
-            _spec("f", f), _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles), jac_f=jac_f, jac_h=jac_h
+            _spec("f", f), _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles),
+            jac_f=jac_f, jac_h=jac_h, hess_f=hess_f, hess_h=hess_h,
         )
 
     @classmethod
@@ -147,6 +164,7 @@ class NonlinearModel:
         iteration: Iteration = "book",
         form: Form = "joseph",
         outputs: FilterOutputs = None,
+        order: int = 1,
     ) -> FilterResult:
         """The extended Kalman filter (Söderström (9.2)-(9.11)).
 
@@ -176,6 +194,11 @@ class NonlinearModel:
             The covariance update (as the linear filter's).
         outputs : str or iterable of str, optional
             The fields to store (default: all but K_pred, which a nonlinear filter does not have).
+        order : {1, 2}
+            2: the second-order EKF (Söderström (9.21)-(9.26)): the predicted means get the
+            expected quadratic terms, y_hat_k = h_k(x(t|t-1)) + 1/2 tr(P(t|t-1) hess h_k) and
+            x(t+1|t)_k = f_k(x(t|t)) + 1/2 tr(P(t|t) hess f_k); the covariances stay the EKF's
+            (the book corrects the means only). Not with ``iterations``.
 
         Returns
         -------
@@ -187,7 +210,7 @@ class NonlinearModel:
         args = self._data(y, x0, P0, u)
         out = self._core.ekf(
             *args[:3], self._outputs(outputs), u=args[3], form=form, iterations=index("iterations", iterations),
-            iteration=iteration,
+            iteration=iteration, order=index("order", order),
         )
         return FilterResult(**out)
 
@@ -225,12 +248,63 @@ class NonlinearModel:
             Also when P(t|t-1) or P(t|t) stops being positive definite (the message names the
             step): there are then no sigma points.
         """
-        points = merwe() if points is None else points
-        if not isinstance(points, SigmaPoints):
-            raise _kfast.KfastError(f"points: expected a kfast.sigma.SigmaPoints, got {type(points).__name__}")
+        points = self._points(points)
         args = self._data(y, x0, P0, u)
         out = self._core.ukf(*args[:3], self._outputs(outputs), points._spec(), u=args[3])
         return FilterResult(**out)
+
+    def smooth(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        method: str = "ekf",
+        u: Optional[ArrayLike] = None,
+        points: Optional[SigmaPoints] = None,
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        form: Form = "joseph",
+        order: int = 1,
+    ) -> SmootherResult:
+        """The extended (``method="ekf"``) or unscented (``"ukf"``) RTS smoother.
+
+        The forward pass is :meth:`ekf` (with ``iterations``, ``iteration``, ``form``, ``order``) or
+        :meth:`ukf` (with ``points``), which also keeps C(t) = Cov(x(t), x(t+1) | y(0..t)):
+        P(t|t) F(t)' for the EKF (F at x(t|t)), the sigma points' cross-covariance for the UKF
+        (Särkkä 2008). Then, for t = T-2 .. 0::
+
+            J(t)     = C(t) P(t+1|t)^-1
+            x(t|T-1) = x(t|t) + J (x(t+1|T-1) - x(t+1|t))
+            P(t|T-1) = P(t|t) + J (P(t+1|T-1) - P(t+1|t)) J'
+
+        Returns
+        -------
+        SmootherResult
+            x_smooth, P_smooth, P_lag1 (Cov(x[t], x[t-1] | all data) = P(t|T-1) J(t-1)', zero at
+            t = 0) and the forward ``filter`` (all FilterResult fields but K_pred).
+
+        Raises
+        ------
+        KfastError
+            Also when P(t+1|t) is singular (the gain J is then undefined), naming the step.
+        """
+        method = cast(str, choice("method", method, ("ekf", "ukf")))
+        iteration = cast(Iteration, choice("iteration", iteration, ("book", "gauss-newton")))
+        form = cast(Form, choice("form", form, ("joseph", "standard")))
+        points = self._points(points)
+        args = self._data(y, x0, P0, u)
+        out = self._core.smooth(
+            *args[:3], method, points._spec(), u=args[3], form=form, iterations=index("iterations", iterations),
+            iteration=iteration, order=index("order", order),
+        )
+        smoothed = {k: out.pop(k) for k in ("x_smooth", "P_smooth", "P_lag1")}
+        return SmootherResult(filter=FilterResult(**out), **smoothed)
+
+    def _points(self, points: Optional[SigmaPoints]) -> SigmaPoints:
+        points = merwe() if points is None else points
+        if not isinstance(points, SigmaPoints):
+            raise _kfast.KfastError(f"points: expected a kfast.sigma.SigmaPoints, got {type(points).__name__}")
+        return points
 
     def _outputs(self, outputs: Any) -> list[str]:
         names = _output_names(outputs)
@@ -250,10 +324,19 @@ class NonlinearModel:
         return y_arr, x, P, u_arr
 
 
+C_SIGNATURE = "void (const double *X, intptr_t k, intptr_t n, int64_t t, const double *u, double *out)"
+"""The C signature of a compiled f or h: the k points X (k x n, row-major), the step t, the input
+row u (NULL without inputs, else the model's input width) and the k x m results in out."""
+
+
 def _spec(name: str, fn: Any) -> Any:
-    """What the compiled model takes for f or h: the callable, or a built-in's (kind, params)."""
+    """What the compiled model takes for f or h: the callable, a built-in's (kind, params), or
+    ("cfunc", address) for a compiled function."""
     if isinstance(fn, BuiltinFunction):
         return (fn.kind, fn.params)
+    address = _compiled_address(name, fn)
+    if address is not None:
+        return ("cfunc", address)
     if not callable(fn):
         raise _kfast.KfastError(f"{name}: expected a callable {name}(X, t, u) or a kfast.models built-in, got {type(fn).__name__}")
     return fn
@@ -266,3 +349,43 @@ def _angles(angles: Sequence[int], m: int) -> tuple[int, ...]:
             raise _kfast.KfastError(f"angles: expected indices of outputs in [0, {m}), got {a!r}")
         out.append(int(a))
     return tuple(out)
+
+
+def _compiled_address(name: str, fn: Any) -> Optional[int]:
+    """The address of a compiled f or h -- a numba ``@cfunc``, a ``scipy.LowLevelCallable`` or a
+    ctypes function pointer -- after checking its declared signature against C_SIGNATURE; None
+    for anything else (a Python callable)."""
+    import ctypes
+
+    if type(fn).__name__ == "LowLevelCallable" and hasattr(fn, "signature"):
+        sig = " ".join(str(fn.signature).replace("const ", "").split())
+        if not re.fullmatch(rf"void \(double \*, {_INT64}, {_INT64}, {_INT64}, double \*, double \*\)", sig):
+            raise _kfast.KfastError(f"{name}: the LowLevelCallable's signature {fn.signature!r} is not {C_SIGNATURE!r}")
+        get_name = ctypes.pythonapi.PyCapsule_GetName
+        get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+        get_pointer = ctypes.pythonapi.PyCapsule_GetPointer
+        get_pointer.restype, get_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+        capsule = tuple.__getitem__(fn, 0)  # a LowLevelCallable is (capsule, function, user_data)
+        return int(get_pointer(capsule, get_name(capsule)))
+    cfn = getattr(fn, "ctypes", None) if hasattr(fn, "address") else fn  # numba's cfunc, or ctypes
+    if not isinstance(cfn, ctypes._CFuncPtr):  # type: ignore[attr-defined]
+        return None
+    double_p = ctypes.POINTER(ctypes.c_double)
+    args = list(getattr(cfn, "argtypes", None) or [])
+
+    def int64(t: Any) -> bool:
+        return isinstance(t, type) and issubclass(t, ctypes._SimpleCData) and ctypes.sizeof(t) == 8 and t._type_ in "lq"  # type: ignore[attr-defined]
+
+    ok = (
+        cfn.restype is None
+        and len(args) == 6
+        and all(args[i] is double_p for i in (0, 4, 5))
+        and all(int64(args[i]) for i in (1, 2, 3))
+    )
+    if not ok:
+        got = ", ".join(getattr(a, "__name__", str(a)) for a in args)
+        raise _kfast.KfastError(f"{name}: the compiled function's signature ({got}) -> {cfn.restype} is not {C_SIGNATURE!r}")
+    return int(ctypes.cast(cfn, ctypes.c_void_p).value or 0)
+
+
+_INT64 = "(?:long|long long|int64_t|intptr_t|ssize_t|Py_ssize_t)"

@@ -13,10 +13,10 @@
 //!
 //! Sizes are run-time; every buffer is allocated once per call, before the loop.
 
-use super::function::{jacobian_by_differences, wrap_angle, Differences, PointFunction};
+use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angle, Differences, PointFunction};
 use super::model::NonlinearModel;
 use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed};
-use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize};
+use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::Dyn;
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
 use crate::core::Series;
@@ -44,6 +44,11 @@ pub struct EkfOptions {
     pub iterations: usize,
     /// How to relinearize.
     pub iteration: Iteration,
+    /// The second-order EKF (Söderström (9.21)–(9.26)): the predicted means corrected by
+    /// `h̄_k = ½ tr(P(t|t−1) ∇²h_k)` and `f̄_k = ½ tr(P(t|t) ∇²f_k)`, Hessians given or by
+    /// second differences; the covariances stay the EKF's (the book corrects means only).
+    /// Not with `iterations > 0`.
+    pub second_order: bool,
 }
 
 /// The extended Kalman filter over the series `y` (T × m) from the prior (x0, P0) = x(0|−1),
@@ -57,12 +62,32 @@ pub fn ekf_into(
     x0: &[f64],
     p0: &[f64],
     options: EkfOptions,
+    out: FilterOutputs<'_>,
+) -> Result<f64> {
+    ekf_run(model, y, u, x0, p0, options, out, None)
+}
+
+/// [`ekf_into`], also storing `Cov(x(t), x(t+1) | y(0..t)) = P(t|t) F(t)'` (T × n × n) in
+/// `cross` when given (for the extended RTS smoother).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn ekf_run(
+    model: &NonlinearModel,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    options: EkfOptions,
     mut out: FilterOutputs<'_>,
+    mut cross: Option<&mut [f64]>,
 ) -> Result<f64> {
     let (n, m) = (model.n_states(), model.n_obs());
     let steps = model.check_run(y, u, x0, p0)?;
     out.check_sizes(steps, n, m)?;
     out.refuse_gain_pred("extended Kalman filter")?;
+    if options.second_order && options.iterations > 0 {
+        return Err(Error::arg("order", "the second-order EKF is not iterated (iterations must be 0)"));
+    }
+    let mut hess = vec![0.0; if options.second_order { n * n * n.max(m) } else { 0 }];
     let mut ws = Step::new(n, m, x0, p0);
     let mut diffs = Differences::default();
     let mut jac_f = vec![0.0; n * n];
@@ -75,6 +100,11 @@ pub fn ekf_into(
         out.store_prior(t, &ws.x, &ws.p);
         // measurement prediction at x̂(t|t−1) (9.9)
         evaluate(model.h(), "h", &ws.x, 1, t, u_t, &mut ws.y_hat)?;
+        if options.second_order {
+            // h̄_k = ½ tr(P(t|t−1) ∇²h_k)  (9.23)
+            hessian(model.h(), "h", &ws.x, t, u_t, &mut diffs, &mut hess[..m * n * n])?;
+            add_half_traces(&mut ws.y_hat, &ws.p, &hess, n);
+        }
         jacobian(model.h(), "h", &ws.x, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
         ws.linearize(model, t);
         ws.observe(model, y_t);
@@ -115,9 +145,18 @@ pub fn ekf_into(
         ws.store(&mut out, t);
         // time update (9.10): f and its Jacobian at x̂(t|t)
         evaluate(model.f(), "f", &ws.x_filt, 1, t, u_t, &mut ws.x)?;
+        if options.second_order {
+            // f̄_k = ½ tr(P(t|t) ∇²f_k), with P(t|t) already computed  (9.22)
+            hessian(model.f(), "f", &ws.x_filt, t, u_t, &mut diffs, &mut hess[..n * n * n])?;
+            add_half_traces(&mut ws.x, &ws.p_filt, &hess, n);
+        }
         jacobian(model.f(), "f", &ws.x_filt, t, u_t, &[], &mut diffs, &mut jac_f)?;
         mul::<Dyn>(&mut ws.fp, &jac_f, &ws.p_filt, n, n, n);
         mul_bt_sym::<Dyn>(&mut ws.p, &ws.fp, &jac_f, n, n);
+        if let Some(c) = cross.as_deref_mut() {
+            // P(t|t) F' = (F P(t|t))'
+            transpose(&mut c[t * n * n..(t + 1) * n * n], &ws.fp, n, n);
+        }
         ws.add_process_noise(model, t);
     }
     out.store_next(&ws.x, &ws.p);
@@ -135,7 +174,23 @@ pub fn ukf_into(
     x0: &[f64],
     p0: &[f64],
     points: SigmaPoints,
+    out: FilterOutputs<'_>,
+) -> Result<f64> {
+    ukf_run(model, y, u, x0, p0, points, out, None)
+}
+
+/// [`ukf_into`], also storing the sigma points' `Cov(x(t), x(t+1) | y(0..t))` (T × n × n) in
+/// `cross` when given (for the unscented RTS smoother, Särkkä 2008).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn ukf_run(
+    model: &NonlinearModel,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    points: SigmaPoints,
     mut out: FilterOutputs<'_>,
+    mut cross: Option<&mut [f64]>,
 ) -> Result<f64> {
     let (n, m) = (model.n_states(), model.n_obs());
     let steps = model.check_run(y, u, x0, p0)?;
@@ -178,6 +233,9 @@ pub fn ukf_into(
         unscented_transform(&weights, &sigma, &images_f, &[], &mut through_f);
         ws.x.copy_from_slice(&through_f.mean);
         ws.p.copy_from_slice(&through_f.cov);
+        if let Some(c) = cross.as_deref_mut() {
+            c[t * n * n..(t + 1) * n * n].copy_from_slice(&through_f.cross);
+        }
         ws.add_process_noise(model, t);
     }
     out.store_next(&ws.x, &ws.p);
@@ -221,6 +279,38 @@ fn jacobian(
         return Err(Error::arg_at(name, t, format!("its Jacobian has a non-finite value ({v})")));
     }
     Ok(())
+}
+
+/// `∂²φ_i/∂x²` at `x` for every output: the function's own Hessians, or second differences;
+/// checked finite.
+fn hessian(
+    phi: &dyn PointFunction,
+    name: &'static str,
+    x: &[f64],
+    t: usize,
+    u: Option<&[f64]>,
+    diffs: &mut Differences,
+    out: &mut [f64],
+) -> Result<()> {
+    match phi.hessian(x, 1, t, u, out) {
+        Some(result) => result?,
+        None => hessian_by_differences(phi, x, t, u, diffs, out)?,
+    }
+    if let Some(v) = out.iter().find(|v| !v.is_finite()) {
+        return Err(Error::arg_at(name, t, format!("its Hessian has a non-finite value ({v})")));
+    }
+    Ok(())
+}
+
+/// `mean_k += ½ tr(P H_k)` for the n × n Hessians `H_k` (one per component of `mean`).
+fn add_half_traces(mean: &mut [f64], p: &[f64], hessians: &[f64], n: usize) {
+    for (k, m) in mean.iter_mut().enumerate() {
+        let h = &hessians[k * n * n..(k + 1) * n * n];
+        // tr(P H) = Σ_ij P_ij H_ji
+        let trace: f64 =
+            (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).map(|(i, j)| p[i * n + j] * h[j * n + i]).sum();
+        *m += 0.5 * trace;
+    }
 }
 
 /// The lower Cholesky factor of a state covariance, or the error naming it and the step.

@@ -27,6 +27,13 @@ pub trait PointFunction: Send + Sync {
         let _ = (points, k, t, u, out);
         None
     }
+
+    /// The Hessians `∂²φ_i/∂x²` at the `k` points (`k × dim_out × n × n`), when known in closed
+    /// form; `None` (the default) means "use second differences".
+    fn hessian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let _ = (points, k, t, u, out);
+        None
+    }
 }
 
 /// `x ↦ A x` for a constant `A` (`dim_out × n`, row-major): a linear model as a nonlinear one.
@@ -139,4 +146,68 @@ pub(crate) fn jacobian_by_differences(
 pub fn wrap_angle(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
     a - TAU * ((a + PI) / TAU).floor()
+}
+
+/// The Hessians of every output of `φ` at `x` (`dim_out × n × n` into `out`) by second central
+/// differences with the step `δ_j = ε^{1/4} max(|x_j|, 1)`, all 1 + 2n² points in one call:
+/// `H_jj = (φ(x + δ_j e_j) − 2φ(x) + φ(x − δ_j e_j)) / δ_j²` and, for j < l,
+/// `H_jl = H_lj = (φ(++) − φ(+−) − φ(−+) + φ(−−)) / 4δ_jδ_l`.
+pub(crate) fn hessian_by_differences(
+    phi: &dyn PointFunction,
+    x: &[f64],
+    t: usize,
+    u: Option<&[f64]>,
+    scratch: &mut Differences,
+    out: &mut [f64],
+) -> Result<()> {
+    let (n, r) = (x.len(), phi.dim_out());
+    let count = 1 + 2 * n * n;
+    let Differences { points, images, steps } = scratch;
+    points.resize(count * n, 0.0);
+    images.resize(count * r, 0.0);
+    steps.resize(n, 0.0);
+    let quarter_eps = f64::EPSILON.powf(0.25);
+    for j in 0..n {
+        steps[j] = quarter_eps * x[j].abs().max(1.0);
+    }
+    {
+        let mut rows = points.chunks_exact_mut(n);
+        let mut next = |moves: &[(usize, f64)]| {
+            let row = rows.next().unwrap_or_default();
+            row.copy_from_slice(x);
+            for &(j, sign) in moves {
+                row[j] += sign * steps[j];
+            }
+        };
+        next(&[]);
+        for j in 0..n {
+            next(&[(j, 1.0)]);
+            next(&[(j, -1.0)]);
+        }
+        for j in 0..n {
+            for l in j + 1..n {
+                for (a, b) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                    next(&[(j, a), (l, b)]);
+                }
+            }
+        }
+    }
+    phi.eval(points, count, t, u, images)?;
+    let z = |p: usize, i: usize| images[p * r + i];
+    for i in 0..r {
+        let h = &mut out[i * n * n..(i + 1) * n * n];
+        for j in 0..n {
+            h[j * n + j] = (z(1 + 2 * j, i) - 2.0 * z(0, i) + z(2 + 2 * j, i)) / (steps[j] * steps[j]);
+        }
+        let mut p = 1 + 2 * n;
+        for j in 0..n {
+            for l in j + 1..n {
+                let v = (z(p, i) - z(p + 1, i) - z(p + 2, i) + z(p + 3, i)) / (4.0 * steps[j] * steps[l]);
+                h[j * n + l] = v;
+                h[l * n + j] = v;
+                p += 4;
+            }
+        }
+    }
+    Ok(())
 }

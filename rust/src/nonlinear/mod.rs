@@ -9,15 +9,18 @@
 //! f and h are [`PointFunction`]s, evaluated at a batch of points per call: the built-in
 //! models of [`models`], a [`LinearMap`], or (in the Python extension) a Python callable.
 //! [`NonlinearModel`] validates them with Q and R once; [`ekf_into`] and [`ukf_into`] run a
-//! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs.
+//! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs;
+//! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass.
 
 mod filter;
 mod function;
 mod model;
 pub mod models;
 mod sigma;
+mod smoother;
 
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration};
 pub use function::{wrap_angle, LinearMap, PointFunction};
 pub use model::NonlinearModel;
 pub use sigma::SigmaPoints;
+pub use smoother::{smooth_nonlinear_into, SmoothMethod};

@@ -8,11 +8,11 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::{filter_outputs, parse_form, prior, series, KfastError, OutArrays};
+use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
 use crate::nonlinear::models::{CoordinatedTurn, RangeBearing};
-use crate::nonlinear::{self, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints};
+use crate::nonlinear::{self, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod};
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 
@@ -23,6 +23,7 @@ struct PyFunction {
     name: &'static str,
     fun: Py<PyAny>,
     jac: Option<Py<PyAny>>,
+    hess: Option<Py<PyAny>>,
     dim_in: usize,
     dim_out: usize,
 }
@@ -110,6 +111,49 @@ impl PointFunction for PyFunction {
         let jac = self.jac.as_ref()?;
         Some(self.call(jac, "its Jacobian", points, k, t, u, &[self.dim_out, self.dim_in], out))
     }
+
+    fn hessian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let hess = self.hess.as_ref()?;
+        Some(self.call(hess, "its Hessian", points, k, t, u, &[self.dim_out, self.dim_in, self.dim_in], out))
+    }
+}
+
+/// The C signature of a compiled f or h: `void f(const double *X, intptr_t k, intptr_t n,
+/// int64_t t, const double *u, double *out)` — the k points X (k × n, row-major), the step t,
+/// the input row u (NULL without inputs) and the k × dim_out results.
+type CFn = unsafe extern "C" fn(*const f64, isize, isize, i64, *const f64, *mut f64);
+
+/// A compiled f or h (a numba `@cfunc` or a `scipy.LowLevelCallable` of the signature [`CFn`],
+/// checked in Python before its address gets here), called from the filter's loop directly,
+/// without the GIL.
+struct CFunction {
+    name: &'static str,
+    fun: CFn,
+    dim_in: usize,
+    dim_out: usize,
+}
+
+impl PointFunction for CFunction {
+    fn dim_in(&self) -> usize {
+        self.dim_in
+    }
+
+    fn dim_out(&self) -> usize {
+        self.dim_out
+    }
+
+    fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        let (k_c, n_c) = (isize::try_from(k), isize::try_from(self.dim_in));
+        let (Ok(k_c), Ok(n_c), Ok(t_c)) = (k_c, n_c, i64::try_from(t)) else {
+            return Err(Error::arg_at(self.name, t, "too many points for a C call"));
+        };
+        let (points, out) = (&points[..k * self.dim_in], &mut out[..k * self.dim_out]);
+        let u = u.map_or(std::ptr::null(), |u| u.as_ptr());
+        // SAFETY: the caller of `kfast.NonlinearModel` vouched for the address (its signature
+        // was checked in Python); the buffers have the sizes the signature promises.
+        unsafe { (self.fun)(points.as_ptr(), k_c, n_c, t_c, u, out.as_mut_ptr()) };
+        Ok(())
+    }
 }
 
 /// f or h from Python: a callable, or a built-in given as `(kind, params)`:
@@ -117,7 +161,7 @@ impl PointFunction for PyFunction {
 fn point_function(
     name: &'static str,
     spec: &Bound<'_, PyAny>,
-    jac: Option<&Bound<'_, PyAny>>,
+    (jac, hess): (Option<&Bound<'_, PyAny>>, Option<&Bound<'_, PyAny>>),
     n: usize,
     dim_out: usize,
 ) -> PyResult<Arc<dyn PointFunction>> {
@@ -129,6 +173,16 @@ fn point_function(
             "range_bearing" => {
                 let (sx, sy): (f64, f64) = params.extract()?;
                 Arc::new(RangeBearing::new([sx, sy], n)?)
+            }
+            "cfunc" => {
+                let address: usize = params.extract()?;
+                if address == 0 {
+                    return Err(KfastError::new_err(format!("{name}: the compiled function's address is 0")));
+                }
+                // SAFETY: a non-null address of a function of the signature CFn (checked in
+                // Python, kfast.nonlinear.model._compiled).
+                let fun: CFn = unsafe { std::mem::transmute::<usize, CFn>(address) };
+                Arc::new(CFunction { name, fun, dim_in: n, dim_out })
             }
             "linear" => {
                 let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
@@ -151,13 +205,45 @@ fn point_function(
     if !spec.is_callable() {
         return Err(KfastError::new_err(format!("{name}: expected a callable f(X, t, u) or a kfast.models built-in")));
     }
+    let unbind = |f: Option<&Bound<'_, PyAny>>| f.map(|f| f.clone().unbind());
     Ok(Arc::new(PyFunction {
         name,
         fun: spec.clone().unbind(),
-        jac: jac.map(|j| j.clone().unbind()),
+        jac: unbind(jac),
+        hess: unbind(hess),
         dim_in: n,
         dim_out,
     }))
+}
+
+fn ekf_options(form: &str, iterations: usize, iteration: &str, order: usize) -> PyResult<EkfOptions> {
+    if !matches!(order, 1 | 2) {
+        return Err(KfastError::new_err(format!("order: expected 1 or 2, got {order}")));
+    }
+    Ok(EkfOptions {
+        form: parse_form(form)?,
+        iterations,
+        iteration: parse_iteration(iteration)?,
+        second_order: order == 2,
+    })
+}
+
+fn parse_iteration(iteration: &str) -> PyResult<Iteration> {
+    match iteration {
+        "book" => Ok(Iteration::Book),
+        "gauss-newton" => Ok(Iteration::GaussNewton),
+        other => Err(KfastError::new_err(format!("iteration: expected \"book\" or \"gauss-newton\", got {other:?}"))),
+    }
+}
+
+/// The sigma points `(kind, alpha, beta, kappa)` of `kfast.sigma.SigmaPoints._spec()`.
+fn sigma_points((kind, alpha, beta, kappa): (String, f64, f64, f64)) -> PyResult<SigmaPoints> {
+    match kind.as_str() {
+        "merwe" => Ok(SigmaPoints::Merwe { alpha, beta, kappa }),
+        "julier" => Ok(SigmaPoints::Julier { kappa }),
+        "cubature" => Ok(SigmaPoints::Cubature),
+        other => Err(KfastError::new_err(format!("points: unknown sigma-point set {other:?}"))),
+    }
 }
 
 fn step_matrix(arg: &'static str, arr: &Array<'_>) -> PyResult<StepMatrix> {
@@ -174,7 +260,7 @@ pub(super) struct PyNonlinearModel {
 #[pymethods]
 impl PyNonlinearModel {
     #[new]
-    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None))]
+    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None, hess_f=None, hess_h=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -187,15 +273,17 @@ impl PyNonlinearModel {
         angles: Vec<usize>,
         jac_f: Option<&Bound<'_, PyAny>>,
         jac_h: Option<&Bound<'_, PyAny>>,
+        hess_f: Option<&Bound<'_, PyAny>>,
+        hess_h: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let f = point_function("f", f, jac_f, n, n)?;
-        let h = point_function("h", h, jac_h, n, m)?;
+        let f = point_function("f", f, (jac_f, hess_f), n, n)?;
+        let h = point_function("h", h, (jac_h, hess_h), n, m)?;
         let inner = nonlinear::NonlinearModel::new(f, h, step_matrix("Q", &Q)?, step_matrix("R", &R)?, angles)?;
         Ok(PyNonlinearModel { inner })
     }
 
     /// The extended Kalman filter; a dict of the FilterResult fields named in `outputs`.
-    #[pyo3(signature = (y, x0, P0, outputs, u=None, form="joseph", iterations=0, iteration="book"))]
+    #[pyo3(signature = (y, x0, P0, outputs, u=None, form="joseph", iterations=0, iteration="book", order=1))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn ekf<'py>(
@@ -209,20 +297,58 @@ impl PyNonlinearModel {
         form: &str,
         iterations: usize,
         iteration: &str,
+        order: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let iteration = match iteration {
-            "book" => Iteration::Book,
-            "gauss-newton" => Iteration::GaussNewton,
-            other => {
-                return Err(KfastError::new_err(format!(
-                    "iteration: expected \"book\" or \"gauss-newton\", got {other:?}"
-                )))
-            }
-        };
-        let options = EkfOptions { form: parse_form(form)?, iterations, iteration };
+        let options = ekf_options(form, iterations, iteration, order)?;
         self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
             nonlinear::ekf_into(model, y, u, x0, p0, options, out)
         })
+    }
+
+    /// The extended (`method="ekf"`) or unscented (`"ukf"`, with `points`) RTS smoother: a
+    /// dict of the filter's fields (all but K_pred) and x_smooth, P_smooth, P_lag1.
+    #[pyo3(signature = (y, x0, P0, method, points, u=None, form="joseph", iterations=0, iteration="book", order=1))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn smooth<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        method: &str,
+        points: (String, f64, f64, f64),
+        u: Option<Array<'py>>,
+        form: &str,
+        iterations: usize,
+        iteration: &str,
+        order: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let method = match method {
+            "ekf" => SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?),
+            "ukf" => SmoothMethod::Ukf(sigma_points(points)?),
+            other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
+        };
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
+        let fields: Vec<String> =
+            FILTER_FIELDS.iter().map(|f| f.name.to_string()).filter(|name| name != "K_pred").collect();
+        let mut out = OutArrays::for_filter(py, steps, n, m, Some(&fields))?.with_written_in_full(
+            py,
+            &[("x_smooth", &[steps, n]), ("P_smooth", &[steps, n, n]), ("P_lag1", &[steps, n, n])],
+        )?;
+        let names = out.names.clone();
+        let mut slices = out.slices()?;
+        let model = &self.inner;
+        let loglik = py.detach(|| {
+            let (filt, smoothed) = outputs(&names, &mut slices);
+            nonlinear::smooth_nonlinear_into(model, y, u, x0, p0, method, filt, smoothed)
+        })?;
+        drop(slices);
+        let dict = out.into_dict(py)?;
+        dict.set_item("loglik", loglik)?;
+        Ok(dict)
     }
 
     /// The unscented Kalman filter with the sigma points `(kind, alpha, beta, kappa)`.
@@ -239,13 +365,7 @@ impl PyNonlinearModel {
         points: (String, f64, f64, f64),
         u: Option<Array<'py>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (kind, alpha, beta, kappa) = points;
-        let points = match kind.as_str() {
-            "merwe" => SigmaPoints::Merwe { alpha, beta, kappa },
-            "julier" => SigmaPoints::Julier { kappa },
-            "cubature" => SigmaPoints::Cubature,
-            other => return Err(KfastError::new_err(format!("points: unknown sigma-point set {other:?}"))),
-        };
+        let points = sigma_points(points)?;
         self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
             nonlinear::ukf_into(model, y, u, x0, p0, points, out)
         })

@@ -85,6 +85,13 @@ macro_rules! filter_outputs {
             }
         }
 
+        impl FilterOutputs<'_> {
+            /// The same buffers, borrowed for a shorter time (to pass on and use again).
+            pub(crate) fn reborrow(&mut self) -> FilterOutputs<'_> {
+                FilterOutputs { $( $field: self.$field.as_deref_mut(), )* }
+            }
+        }
+
         impl<'a> FilterOutputs<'a> {
             /// The buffer slots with their fields, in [`FILTER_FIELDS`]' order.
             pub fn slots(&mut self) -> impl Iterator<Item = (&'static OutputField, &mut Option<&'a mut [f64]>)> {
