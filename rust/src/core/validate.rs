@@ -2,6 +2,7 @@
 //! time step, where there is one) so that messages read like
 //! `P0: not positive semidefinite (smallest eigenvalue -2.5e-1)`.
 
+use crate::core::Series;
 use crate::error::{Error, Result};
 
 /// Tolerance, relative to the largest entry, for symmetry and semidefiniteness checks.
@@ -95,4 +96,26 @@ pub(crate) fn check_joint_psd(q: &[f64], nn: &[f64], r: &[f64], n: usize, m: usi
         joint[(n + i) * size + n..(n + i + 1) * size].copy_from_slice(&r[i * m..(i + 1) * m]);
     }
     check_psd(&joint, size).map_err(|p| format!("[[Q, N], [N', R]] is {p}"))
+}
+
+/// The observations of one series: m per row, at least one row, as many rows as the model's
+/// per-step matrices (`model_steps`, when it has them), no ±inf (NaN marks a missing value);
+/// returns T.
+pub(crate) fn check_observations(y: Series<'_>, m: usize, model_steps: Option<usize>) -> Result<usize> {
+    let steps = y.steps();
+    if y.width() != m {
+        return Err(Error::arg("y", format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width())));
+    }
+    if steps == 0 {
+        return Err(Error::arg("y", "has no time steps (T = 0)"));
+    }
+    if let Some(tm) = model_steps {
+        if tm != steps {
+            return Err(Error::arg("y", format!("has {steps} steps but the model's per-step matrices have {tm}")));
+        }
+    }
+    for t in 0..steps {
+        check_observation(y.row(t), Some(t))?;
+    }
+    Ok(steps)
 }

@@ -1,7 +1,7 @@
 //! Validation of data, inputs and options against a linear model: once per call, before the
 //! time loop (the model's own matrices are validated by [`LinearGaussian::new`]).
 
-use crate::core::validate::{check_input_row, check_observation, check_prior};
+use crate::core::validate::{check_input_row, check_observations, check_prior};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::model::LinearGaussian;
@@ -30,21 +30,7 @@ pub(crate) fn check_data(
 
 /// Validates the data and inputs of one series against the model; returns T.
 pub(crate) fn check_series(model: &LinearGaussian, y: Series<'_>, u: Option<Series<'_>>) -> Result<usize> {
-    let (m, steps) = (model.n_obs(), y.steps());
-    if y.width() != m {
-        return Err(Error::arg("y", format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width())));
-    }
-    if steps == 0 {
-        return Err(Error::arg("y", "has no time steps (T = 0)"));
-    }
-    if let Some(tm) = model.steps() {
-        if tm != steps {
-            return Err(Error::arg("y", format!("has {steps} steps but the model's per-step matrices have {tm}")));
-        }
-    }
-    for t in 0..steps {
-        check_observation(y.row(t), Some(t))?;
-    }
+    let steps = check_observations(y, model.n_obs(), model.steps())?;
     check_input_series(model, u, steps)?;
     Ok(steps)
 }

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use super::function::PointFunction;
-use crate::core::validate::{check_observation, check_prior, check_psd, check_symmetric};
+use crate::core::validate::{check_input_row, check_observations, check_prior, check_psd, check_symmetric};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
@@ -109,30 +109,13 @@ impl NonlinearModel {
 
     /// Validates data, inputs and prior for a run; returns T.
     pub(crate) fn check_run(&self, y: Series<'_>, u: Option<Series<'_>>, x0: &[f64], p0: &[f64]) -> Result<usize> {
-        let (m, steps) = (self.n_obs(), y.steps());
-        if y.width() != m {
-            return Err(Error::arg(
-                "y",
-                format!("expected shape (T, {m}) for m = {m} outputs, got (T, {})", y.width()),
-            ));
-        }
-        if steps == 0 {
-            return Err(Error::arg("y", "has no time steps (T = 0)"));
-        }
-        if let Some(tm) = self.steps() {
-            if tm != steps {
-                return Err(Error::arg("y", format!("has {steps} steps but the model's per-step Q/R have {tm}")));
-            }
-        }
-        for t in 0..steps {
-            check_observation(y.row(t), Some(t))?;
-        }
+        let steps = check_observations(y, self.n_obs(), self.steps())?;
         if let Some(u) = u {
             if u.steps() != steps {
                 return Err(Error::arg("u", format!("has {} steps but y has {steps}", u.steps())));
             }
             for t in 0..steps {
-                crate::core::validate::check_input_row(u.row(t), Some(t))?;
+                check_input_row(u.row(t), Some(t))?;
             }
         }
         check_prior(self.n_states(), x0, p0)?;
