@@ -33,6 +33,7 @@ from kfast.linear.model import (
 
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
+from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -52,6 +53,8 @@ __all__ = [
     "sigma",
     "LinearGaussian",
     "NonlinearModel",
+    "ExtendedKalmanFilter",
+    "UnscentedKalmanFilter",
     "FilterResult",
     "SmootherResult",
     "FixedLagResult",

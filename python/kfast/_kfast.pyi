@@ -204,6 +204,40 @@ class NonlinearModel:
         order: int = 1,
     ) -> dict[str, Any]: ...
 
+class NonlinearKalmanFilter:
+    """The streaming EKF (method "ekf") or UKF ("ukf") of a compiled NonlinearModel;
+    kfast.ExtendedKalmanFilter and kfast.UnscentedKalmanFilter wrap it."""
+
+    def __init__(
+        self,
+        model: NonlinearModel,
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        method: str,
+        points: tuple[str, float, float, float],
+        form: Form = "joseph",
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        order: int = 1,
+    ) -> None: ...
+    def update(
+        self,
+        y: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+        h: Any = None,
+        R: Optional[NDArray[np.float64]] = None,
+        angles: Optional[list[int]] = None,
+    ) -> None: ...
+    def predict(self, u: Optional[NDArray[np.float64]] = None) -> None: ...
+    @property
+    def x(self) -> NDArray[np.float64]: ...
+    @property
+    def P(self) -> NDArray[np.float64]: ...
+    @property
+    def t(self) -> int: ...
+    @property
+    def loglik(self) -> float: ...
+
 class KalmanFilter:
     """Streaming Kalman filter from the prior (x0, P0) = x(0|-1), P(0|-1).
 

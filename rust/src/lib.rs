@@ -78,8 +78,8 @@ pub use linear::smoother::{
     FixedPointResult, SmoothOutputs, SmootherResult,
 };
 pub use nonlinear::{
-    ekf_into, smooth_nonlinear_into, ukf_into, EkfOptions, Iteration, NonlinearModel, PointFunction, SigmaPoints,
-    SmoothMethod,
+    ekf_into, smooth_nonlinear_into, ukf_into, EkfOptions, Iteration, NonlinearKalmanFilter, NonlinearModel,
+    PointFunction, SigmaPoints, SmoothMethod,
 };
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,

@@ -1,5 +1,6 @@
 """Nonlinear Gaussian filters: the extended and unscented Kalman filters of a NonlinearModel."""
 
 from kfast.nonlinear.model import BuiltinFunction, NonlinearModel
+from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
 
-__all__ = ["NonlinearModel", "BuiltinFunction"]
+__all__ = ["NonlinearModel", "BuiltinFunction", "ExtendedKalmanFilter", "UnscentedKalmanFilter"]

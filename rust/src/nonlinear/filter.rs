@@ -11,11 +11,12 @@
 //!   (x̂(t|t−1), P(t|t−1)) through h give ŷ, S and C; points of (x̂(t|t), P(t|t)) through f
 //!   give x̂(t+1|t) and P(t+1|t) (plus Q). P(t|t) = P − K S K'.
 //!
-//! Sizes are run-time; every buffer is allocated once per call, before the loop.
+//! Sizes are run-time; every buffer is allocated once per call, before the loop (a streaming
+//! filter's measurement buffers again when a sensor with another m comes).
 
 use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angle, Differences, PointFunction};
 use super::model::NonlinearModel;
-use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed};
+use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed, Weights};
 use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::Dyn;
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
@@ -77,90 +78,12 @@ pub(crate) fn ekf_run(
     x0: &[f64],
     p0: &[f64],
     options: EkfOptions,
-    mut out: FilterOutputs<'_>,
-    mut cross: Option<&mut [f64]>,
+    out: FilterOutputs<'_>,
+    cross: Option<&mut [f64]>,
 ) -> Result<f64> {
-    let (n, m) = (model.n_states(), model.n_obs());
     let steps = model.check_run(y, u, x0, p0)?;
-    out.check_sizes(steps, n, m)?;
-    out.refuse_gain_pred("extended Kalman filter")?;
-    if options.second_order && options.iterations > 0 {
-        return Err(Error::arg("order", "the second-order EKF is not iterated (iterations must be 0)"));
-    }
-    let mut hess = vec![0.0; if options.second_order { n * n * n.max(m) } else { 0 }];
-    let mut ws = Step::new(n, m, x0, p0);
-    let mut diffs = Differences::default();
-    let mut jac_f = vec![0.0; n * n];
-    let mut iterate = GaussianUpdate::new(Dyn { n, m });
-    let (mut x_i, mut h_at_xi) = (vec![0.0; n], vec![0.0; m]);
-    let mut scratch_p = vec![0.0; n * n];
-    let mut total = LoglikSum::default();
-    for t in 0..steps {
-        let (y_t, u_t) = (y.row(t), u.map(|u| u.row(t)));
-        out.store_prior(t, &ws.x, &ws.p);
-        // measurement prediction at x̂(t|t−1) (9.9)
-        evaluate(model.h(), "h", &ws.x, 1, t, u_t, &mut ws.y_hat)?;
-        if options.second_order {
-            // h̄_k = ½ tr(P(t|t−1) ∇²h_k)  (9.23)
-            hessian(model.h(), "h", &ws.x, t, u_t, &mut diffs, &mut hess[..m * n * n])?;
-            add_half_traces(&mut ws.y_hat, &ws.p, &hess, n);
-        }
-        jacobian(model.h(), "h", &ws.x, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
-        ws.linearize(model, t);
-        ws.observe(model, y_t);
-        if ws.observed.is_empty() {
-            ws.skip_update();
-        } else {
-            ws.gather(model, t, None);
-            ws.update(options.form, t)?;
-            if options.iterations > 0 {
-                x_i.copy_from_slice(&ws.x_filt);
-                for _ in 0..options.iterations {
-                    // relinearize h at the last estimate x_i
-                    jacobian(model.h(), "h", &x_i, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
-                    ws.linearize(model, t);
-                    let residual = match options.iteration {
-                        Iteration::Book => None, // (9.13): the innovation stays at the prediction
-                        Iteration::GaussNewton => {
-                            evaluate(model.h(), "h", &x_i, 1, t, u_t, &mut h_at_xi)?;
-                            Some(Residual { y: y_t, x_i: &x_i, h_at_xi: &h_at_xi })
-                        }
-                    };
-                    ws.gather(model, t, residual);
-                    let mo = ws.observed.len();
-                    iterate.apply(Dyn { n, m }, mo, &ws.prediction(), &ws.x, &ws.p, &mut x_i, &mut scratch_p, t)?;
-                }
-                if options.iteration == Iteration::GaussNewton {
-                    jacobian(model.h(), "h", &x_i, t, u_t, model.angles(), &mut diffs, &mut ws.jac_h)?;
-                    ws.linearize(model, t);
-                }
-                // P(t|t), S and K from the last linearization, with the innovation at the
-                // prediction (9.16)–(9.17)
-                ws.gather(model, t, None);
-                ws.update(options.form, t)?;
-                ws.x_filt.copy_from_slice(&x_i);
-            }
-            total.add(&ws.gauss);
-        }
-        ws.store(&mut out, t);
-        // time update (9.10): f and its Jacobian at x̂(t|t)
-        evaluate(model.f(), "f", &ws.x_filt, 1, t, u_t, &mut ws.x)?;
-        if options.second_order {
-            // f̄_k = ½ tr(P(t|t) ∇²f_k), with P(t|t) already computed  (9.22)
-            hessian(model.f(), "f", &ws.x_filt, t, u_t, &mut diffs, &mut hess[..n * n * n])?;
-            add_half_traces(&mut ws.x, &ws.p_filt, &hess, n);
-        }
-        jacobian(model.f(), "f", &ws.x_filt, t, u_t, &[], &mut diffs, &mut jac_f)?;
-        mul::<Dyn>(&mut ws.fp, &jac_f, &ws.p_filt, n, n, n);
-        mul_bt_sym::<Dyn>(&mut ws.p, &ws.fp, &jac_f, n, n);
-        if let Some(c) = cross.as_deref_mut() {
-            // P(t|t) F' = (F P(t|t))'
-            transpose(&mut c[t * n * n..(t + 1) * n * n], &ws.fp, n, n);
-        }
-        ws.add_process_noise(model, t);
-    }
-    out.store_next(&ws.x, &ws.p);
-    Ok(total.total())
+    let filter = Ekf::new(model.n_states(), model.n_obs(), x0, p0, options)?;
+    run(model, y, u, steps, filter, out, cross)
 }
 
 /// The unscented Kalman filter over the series `y` with the sigma-point set `points`; as
@@ -189,57 +112,295 @@ pub(crate) fn ukf_run(
     x0: &[f64],
     p0: &[f64],
     points: SigmaPoints,
+    out: FilterOutputs<'_>,
+    cross: Option<&mut [f64]>,
+) -> Result<f64> {
+    let steps = model.check_run(y, u, x0, p0)?;
+    let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points)?;
+    run(model, y, u, steps, filter, out, cross)
+}
+
+/// The time loop of either filter: update with y(t), store, predict to t + 1.
+fn run(
+    model: &NonlinearModel,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    steps: usize,
+    mut filter: impl GaussianFilter,
     mut out: FilterOutputs<'_>,
     mut cross: Option<&mut [f64]>,
 ) -> Result<f64> {
-    let (n, m) = (model.n_states(), model.n_obs());
-    let steps = model.check_run(y, u, x0, p0)?;
-    out.check_sizes(steps, n, m)?;
-    out.refuse_gain_pred("unscented Kalman filter")?;
-    points.validate(n)?;
-    let weights = points.weights(n);
-    let k = points.count(n);
-    let mut ws = Step::new(n, m, x0, p0);
-    let mut factor = vec![0.0; n * n];
-    let mut sigma = vec![0.0; k * n];
-    let mut images_h = vec![0.0; k * m];
-    let mut images_f = vec![0.0; k * n];
-    let mut through_h = Transformed::new(k, n, m);
-    let mut through_f = Transformed::new(k, n, n);
+    let n = model.n_states();
+    out.check_sizes(steps, n, model.n_obs())?;
+    out.refuse_gain_pred(filter.name())?;
     let mut total = LoglikSum::default();
     for t in 0..steps {
         let (y_t, u_t) = (y.row(t), u.map(|u| u.row(t)));
-        out.store_prior(t, &ws.x, &ws.p);
-        square_root(&mut factor, &ws.p, n, "P(t|t-1)", t)?;
-        place(&weights, &ws.x, &factor, &mut sigma);
-        evaluate(model.h(), "h", &sigma, k, t, u_t, &mut images_h)?;
-        unscented_transform(&weights, &sigma, &images_h, model.angles(), &mut through_h);
+        out.store_prior(t, &filter.state().x, &filter.state().p);
+        filter.update(model.sensor(t), y_t, t, u_t)?;
+        total.add(&filter.state().gauss);
+        filter.state().store(&mut out, t);
+        let cross_t = cross.as_deref_mut().map(|c| &mut c[t * n * n..(t + 1) * n * n]);
+        filter.predict(model.f(), model.q_at(t), t, u_t, cross_t)?;
+    }
+    out.store_next(&filter.state().x, &filter.state().p);
+    Ok(total.total())
+}
+
+/// What the time loop and the streaming filters need of a Gaussian filter.
+pub(crate) trait GaussianFilter: Send + Sync {
+    /// "extended Kalman filter" or "unscented Kalman filter", for messages.
+    fn name(&self) -> &'static str;
+    /// The state and the last update's results.
+    fn state(&self) -> &Step;
+    /// The same, to change (a streaming filter moves x̂(t|t) into the prior of a second
+    /// update at the same step).
+    fn state_mut(&mut self) -> &mut Step;
+    /// The measurement update with y(t) (NaN: missing) from x̂(t|t−1), P(t|t−1) to x̂(t|t),
+    /// P(t|t); nothing observed skips it.
+    fn update(&mut self, sensor: Sensor<'_>, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<()>;
+    /// The time update from x̂(t|t), P(t|t) to x̂(t+1|t), P(t+1|t); stores
+    /// Cov(x(t), x(t+1) | y(0..t)) into `cross` when given.
+    fn predict(
+        &mut self,
+        f: &dyn PointFunction,
+        q: &[f64],
+        t: usize,
+        u: Option<&[f64]>,
+        cross: Option<&mut [f64]>,
+    ) -> Result<()>;
+}
+
+/// The measurement model of one step: h, R and the angular outputs of h.
+#[derive(Clone, Copy)]
+pub struct Sensor<'a> {
+    /// h, with m outputs.
+    pub h: &'a dyn PointFunction,
+    /// R (m × m).
+    pub r: &'a [f64],
+    /// The outputs of h that are angles.
+    pub angles: &'a [usize],
+}
+
+/// The EKF between steps, with its scratch.
+pub(crate) struct Ekf {
+    ws: Step,
+    options: EkfOptions,
+    diffs: Differences,
+    jac_f: Vec<f64>,
+    iterate: GaussianUpdate<Dyn>,
+    x_i: Vec<f64>,
+    h_at_xi: Vec<f64>,
+    scratch_p: Vec<f64>,
+    hess: Vec<f64>,
+}
+
+impl Ekf {
+    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], options: EkfOptions) -> Result<Self> {
+        if options.second_order && options.iterations > 0 {
+            return Err(Error::arg("order", "the second-order EKF is not iterated (iterations must be 0)"));
+        }
+        Ok(Ekf {
+            ws: Step::new(n, m, x0, p0),
+            options,
+            diffs: Differences::default(),
+            jac_f: vec![0.0; n * n],
+            iterate: GaussianUpdate::new(Dyn { n, m }),
+            x_i: vec![0.0; n],
+            h_at_xi: vec![0.0; m],
+            scratch_p: vec![0.0; n * n],
+            hess: Vec::new(),
+        })
+    }
+}
+
+impl GaussianFilter for Ekf {
+    fn name(&self) -> &'static str {
+        "extended Kalman filter"
+    }
+
+    fn state(&self) -> &Step {
+        &self.ws
+    }
+
+    fn state_mut(&mut self) -> &mut Step {
+        &mut self.ws
+    }
+
+    fn update(&mut self, sensor: Sensor<'_>, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<()> {
+        let (n, m) = (self.ws.n, sensor.h.dim_out());
+        if self.ws.fit(m) {
+            self.iterate = GaussianUpdate::new(Dyn { n, m });
+            self.h_at_xi.resize(m, 0.0);
+        }
+        let Ekf { ws, options, diffs, iterate, x_i, h_at_xi, scratch_p, hess, .. } = self;
+        let h = sensor.h;
+        // measurement prediction at x̂(t|t−1) (9.9)
+        evaluate(h, "h", &ws.x, 1, t, u, &mut ws.y_hat)?;
+        if options.second_order {
+            // h̄_k = ½ tr(P(t|t−1) ∇²h_k)  (9.23)
+            hess.resize(m * n * n, 0.0);
+            hessian(h, "h", &ws.x, t, u, diffs, hess)?;
+            add_half_traces(&mut ws.y_hat, &ws.p, hess, n);
+        }
+        jacobian(h, "h", &ws.x, t, u, sensor.angles, diffs, &mut ws.jac_h)?;
+        ws.linearize(sensor);
+        ws.observe(sensor, y);
+        if ws.observed.is_empty() {
+            ws.skip_update();
+            return Ok(());
+        }
+        ws.gather(sensor, None);
+        ws.update(options.form, t)?;
+        if options.iterations == 0 {
+            return Ok(());
+        }
+        x_i.copy_from_slice(&ws.x_filt);
+        for _ in 0..options.iterations {
+            // relinearize h at the last estimate x_i
+            jacobian(h, "h", x_i, t, u, sensor.angles, diffs, &mut ws.jac_h)?;
+            ws.linearize(sensor);
+            let residual = match options.iteration {
+                Iteration::Book => None, // (9.13): the innovation stays at the prediction
+                Iteration::GaussNewton => {
+                    evaluate(h, "h", x_i, 1, t, u, h_at_xi)?;
+                    Some(Residual { y, x_i, h_at_xi })
+                }
+            };
+            ws.gather(sensor, residual);
+            let mo = ws.observed.len();
+            iterate.apply(Dyn { n, m }, mo, &ws.prediction(), &ws.x, &ws.p, x_i, scratch_p, t)?;
+        }
+        if options.iteration == Iteration::GaussNewton {
+            jacobian(h, "h", x_i, t, u, sensor.angles, diffs, &mut ws.jac_h)?;
+            ws.linearize(sensor);
+        }
+        // P(t|t), S and K from the last linearization, with the innovation at the prediction
+        // (9.16)–(9.17)
+        ws.gather(sensor, None);
+        ws.update(options.form, t)?;
+        ws.x_filt.copy_from_slice(x_i);
+        Ok(())
+    }
+
+    fn predict(
+        &mut self,
+        f: &dyn PointFunction,
+        q: &[f64],
+        t: usize,
+        u: Option<&[f64]>,
+        cross: Option<&mut [f64]>,
+    ) -> Result<()> {
+        let Ekf { ws, options, diffs, jac_f, hess, .. } = self;
+        let n = ws.n;
+        // (9.10): f and its Jacobian at x̂(t|t)
+        evaluate(f, "f", &ws.x_filt, 1, t, u, &mut ws.x)?;
+        if options.second_order {
+            // f̄_k = ½ tr(P(t|t) ∇²f_k), with P(t|t) already computed  (9.22)
+            hess.resize(n * n * n, 0.0);
+            hessian(f, "f", &ws.x_filt, t, u, diffs, &mut hess[..n * n * n])?;
+            add_half_traces(&mut ws.x, &ws.p_filt, hess, n);
+        }
+        jacobian(f, "f", &ws.x_filt, t, u, &[], diffs, jac_f)?;
+        mul::<Dyn>(&mut ws.fp, jac_f, &ws.p_filt, n, n, n);
+        mul_bt_sym::<Dyn>(&mut ws.p, &ws.fp, jac_f, n, n);
+        if let Some(c) = cross {
+            // P(t|t) F' = (F P(t|t))'
+            transpose(c, &ws.fp, n, n);
+        }
+        ws.add_process_noise(q);
+        Ok(())
+    }
+}
+
+/// The UKF between steps, with its sigma points and scratch.
+pub(crate) struct Ukf {
+    ws: Step,
+    weights: Weights,
+    factor: Vec<f64>,
+    sigma: Vec<f64>,
+    images_h: Vec<f64>,
+    images_f: Vec<f64>,
+    through_h: Transformed,
+    through_f: Transformed,
+}
+
+impl Ukf {
+    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], points: SigmaPoints) -> Result<Self> {
+        points.validate(n)?;
+        let k = points.count(n);
+        Ok(Ukf {
+            ws: Step::new(n, m, x0, p0),
+            weights: points.weights(n),
+            factor: vec![0.0; n * n],
+            sigma: vec![0.0; k * n],
+            images_h: vec![0.0; k * m],
+            images_f: vec![0.0; k * n],
+            through_h: Transformed::new(k, n, m),
+            through_f: Transformed::new(k, n, n),
+        })
+    }
+}
+
+impl GaussianFilter for Ukf {
+    fn name(&self) -> &'static str {
+        "unscented Kalman filter"
+    }
+
+    fn state(&self) -> &Step {
+        &self.ws
+    }
+
+    fn state_mut(&mut self) -> &mut Step {
+        &mut self.ws
+    }
+
+    fn update(&mut self, sensor: Sensor<'_>, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<()> {
+        let (n, m, k) = (self.ws.n, sensor.h.dim_out(), self.weights.mean.len());
+        if self.ws.fit(m) {
+            self.images_h.resize(k * m, 0.0);
+            self.through_h = Transformed::new(k, n, m);
+        }
+        let Ukf { ws, weights, factor, sigma, images_h, through_h, .. } = self;
+        square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
+        place(weights, &ws.x, factor, sigma);
+        evaluate(sensor.h, "h", sigma, k, t, u, images_h)?;
+        unscented_transform(weights, sigma, images_h, sensor.angles, through_h);
         ws.y_hat.copy_from_slice(&through_h.mean);
         ws.s_full.copy_from_slice(&through_h.cov);
         ws.c_full.copy_from_slice(&through_h.cross);
-        ws.add_measurement_noise(model, t);
-        ws.observe(model, y_t);
+        ws.add_measurement_noise(sensor);
+        ws.observe(sensor, y);
         if ws.observed.is_empty() {
             ws.skip_update();
-        } else {
-            ws.gather(model, t, None);
-            ws.update(UpdateForm::Standard, t)?;
-            total.add(&ws.gauss);
+            return Ok(());
         }
-        ws.store(&mut out, t);
-        square_root(&mut factor, &ws.p_filt, n, "P(t|t)", t)?;
-        place(&weights, &ws.x_filt, &factor, &mut sigma);
-        evaluate(model.f(), "f", &sigma, k, t, u_t, &mut images_f)?;
-        unscented_transform(&weights, &sigma, &images_f, &[], &mut through_f);
+        ws.gather(sensor, None);
+        ws.update(UpdateForm::Standard, t)
+    }
+
+    fn predict(
+        &mut self,
+        f: &dyn PointFunction,
+        q: &[f64],
+        t: usize,
+        u: Option<&[f64]>,
+        cross: Option<&mut [f64]>,
+    ) -> Result<()> {
+        let Ukf { ws, weights, factor, sigma, images_f, through_f, .. } = self;
+        let (n, k) = (ws.n, weights.mean.len());
+        square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
+        place(weights, &ws.x_filt, factor, sigma);
+        evaluate(f, "f", sigma, k, t, u, images_f)?;
+        unscented_transform(weights, sigma, images_f, &[], through_f);
         ws.x.copy_from_slice(&through_f.mean);
         ws.p.copy_from_slice(&through_f.cov);
-        if let Some(c) = cross.as_deref_mut() {
-            c[t * n * n..(t + 1) * n * n].copy_from_slice(&through_f.cross);
+        if let Some(c) = cross {
+            c.copy_from_slice(&through_f.cross);
         }
-        ws.add_process_noise(model, t);
+        ws.add_process_noise(q);
+        Ok(())
     }
-    out.store_next(&ws.x, &ws.p);
-    Ok(total.total())
 }
 
 /// `φ` at `k` points, with its output checked finite (the error names the function and step).
@@ -333,8 +494,9 @@ struct Residual<'a> {
     h_at_xi: &'a [f64],
 }
 
-/// One filter's state and step buffers (run-time sizes, allocated once per call).
-struct Step {
+/// One filter's state and step buffers (run-time sizes, allocated once per call, and again
+/// only when a streaming filter's sensor changes m).
+pub(crate) struct Step {
     n: usize,
     m: usize,
     /// x̂(t|t−1), P(t|t−1); x̂(t+1|t), P(t+1|t) after the time update.
@@ -387,26 +549,26 @@ impl Step {
     }
 
     /// For a linearized measurement (EKF): C = P H' and S = H P H' + R for all components.
-    fn linearize(&mut self, model: &NonlinearModel, t: usize) {
+    fn linearize(&mut self, sensor: Sensor<'_>) {
         let (n, m) = (self.n, self.m);
         mul_bt::<Dyn>(&mut self.c_full, &self.p, &self.jac_h, n, n, m);
         mul::<Dyn>(&mut self.s_full, &self.jac_h, &self.c_full, m, n, m);
         symmetrize(&mut self.s_full, m);
-        self.add_measurement_noise(model, t);
+        self.add_measurement_noise(sensor);
     }
 
-    fn add_measurement_noise(&mut self, model: &NonlinearModel, t: usize) {
-        for (s, r) in self.s_full.iter_mut().zip(model.r_at(t)) {
+    fn add_measurement_noise(&mut self, sensor: Sensor<'_>) {
+        for (s, r) in self.s_full.iter_mut().zip(sensor.r) {
             *s += r;
         }
     }
 
     /// The innovation y − ŷ of every component (angles wrapped; NaN where y is missing) and
     /// the observed components.
-    fn observe(&mut self, model: &NonlinearModel, y: &[f64]) {
+    fn observe(&mut self, sensor: Sensor<'_>, y: &[f64]) {
         for (i, e) in self.innov.iter_mut().enumerate() {
             *e = y[i] - self.y_hat[i];
-            if model.angles().contains(&i) {
+            if sensor.angles.contains(&i) {
                 *e = wrap_angle(*e);
             }
         }
@@ -416,9 +578,9 @@ impl Step {
 
     /// The observed blocks of e, C, S, H and R; with a Gauss–Newton `residual`, e is
     /// y − h(x_i) − H (x̂⁻ − x_i) instead of the innovation.
-    fn gather(&mut self, model: &NonlinearModel, t: usize, residual: Option<Residual<'_>>) {
+    fn gather(&mut self, sensor: Sensor<'_>, residual: Option<Residual<'_>>) {
         let (n, m, mo) = (self.n, self.m, self.observed.len());
-        let r = model.r_at(t);
+        let r = sensor.r;
         for (a, &i) in self.observed.iter().enumerate() {
             let h = &self.jac_h[i * n..(i + 1) * n];
             self.h_obs[a * n..(a + 1) * n].copy_from_slice(h);
@@ -426,7 +588,7 @@ impl Step {
                 None => self.innov[i],
                 Some(Residual { y, x_i, h_at_xi }) => {
                     let mut e = y[i] - h_at_xi[i];
-                    if model.angles().contains(&i) {
+                    if sensor.angles.contains(&i) {
                         e = wrap_angle(e);
                     }
                     e - h.iter().zip(&self.x).zip(x_i).map(|((h, x), xi)| h * (x - xi)).sum::<f64>()
@@ -474,6 +636,45 @@ impl Step {
         Ok(())
     }
 
+    /// x̂ and P of the current phase: (x̂(t|t), P(t|t)) after an update, else the prediction.
+    pub(crate) fn current(&self, filtered: bool) -> (&[f64], &[f64]) {
+        if filtered {
+            (&self.x_filt, &self.p_filt)
+        } else {
+            (&self.x, &self.p)
+        }
+    }
+
+    /// Makes x̂(t|t), P(t|t) the prior of the next update (`to_prior`), or the prediction the
+    /// filtered state (a time update with no update before it).
+    pub(crate) fn carry(&mut self, to_prior: bool) {
+        let Step { x, p, x_filt, p_filt, .. } = self;
+        if to_prior {
+            x.copy_from_slice(x_filt);
+            p.copy_from_slice(p_filt);
+        } else {
+            x_filt.copy_from_slice(x);
+            p_filt.copy_from_slice(p);
+        }
+    }
+
+    /// The log-likelihood term of the last update (0 when nothing was observed).
+    pub(crate) fn loglik_t(&self) -> f64 {
+        self.gauss.loglik_t()
+    }
+
+    /// Sizes the measurement buffers for `m` outputs; `true` when they changed (a streaming
+    /// filter's second sensor), so the caller resizes its own.
+    fn fit(&mut self, m: usize) -> bool {
+        if m == self.m {
+            return false;
+        }
+        let fresh = Step::new(self.n, m, &self.x, &self.p);
+        let Step { x, p, x_filt, p_filt, fp, .. } = std::mem::replace(self, fresh);
+        (self.x, self.p, self.x_filt, self.p_filt, self.fp) = (x, p, x_filt, p_filt, fp);
+        true
+    }
+
     fn skip_update(&mut self) {
         self.x_filt.copy_from_slice(&self.x);
         self.p_filt.copy_from_slice(&self.p);
@@ -485,8 +686,8 @@ impl Step {
         out.store_values(t, &self.x_filt, &self.p_filt, &self.innov, &self.s_full, &self.gain, self.gauss.loglik_t());
     }
 
-    fn add_process_noise(&mut self, model: &NonlinearModel, t: usize) {
-        for (p, q) in self.p.iter_mut().zip(model.q_at(t)) {
+    fn add_process_noise(&mut self, q: &[f64]) {
+        for (p, q) in self.p.iter_mut().zip(q) {
             *p += q;
         }
         symmetrize(&mut self.p, self.n);

@@ -10,7 +10,8 @@
 //! models of [`models`], a [`LinearMap`], or (in the Python extension) a Python callable.
 //! [`NonlinearModel`] validates them with Q and R once; [`ekf_into`] and [`ukf_into`] run a
 //! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs;
-//! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass.
+//! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass;
+//! [`NonlinearKalmanFilter`] runs either filter one step at a time.
 
 mod filter;
 mod function;
@@ -18,9 +19,11 @@ mod model;
 pub mod models;
 mod sigma;
 mod smoother;
+mod streaming;
 
-pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration};
+pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor};
 pub use function::{wrap_angle, LinearMap, PointFunction};
 pub use model::NonlinearModel;
 pub use sigma::SigmaPoints;
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};
+pub use streaming::NonlinearKalmanFilter;

@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use super::filter::Sensor;
 use super::function::PointFunction;
 use crate::core::validate::{check_input_row, check_observations, check_prior, check_psd, check_symmetric};
 use crate::core::Series;
@@ -95,16 +96,13 @@ impl NonlinearModel {
         &*self.f
     }
 
-    pub(crate) fn h(&self) -> &dyn PointFunction {
-        &*self.h
+    /// The measurement model of step t.
+    pub(crate) fn sensor(&self, t: usize) -> Sensor<'_> {
+        Sensor { h: &*self.h, r: self.r.at(t), angles: &self.angles }
     }
 
     pub(crate) fn q_at(&self, t: usize) -> &[f64] {
         self.q.at(t)
-    }
-
-    pub(crate) fn r_at(&self, t: usize) -> &[f64] {
-        self.r.at(t)
     }
 
     /// Validates data, inputs and prior for a run; returns T.

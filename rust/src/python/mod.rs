@@ -355,6 +355,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NoStabilizingSolutionError", py.get_type::<NoStabilizingSolutionError>())?;
     m.add_class::<model::PyLinearGaussian>()?;
     m.add_class::<nonlinear::PyNonlinearModel>()?;
+    m.add_class::<nonlinear::PyNonlinearKalmanFilter>()?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;
     m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;

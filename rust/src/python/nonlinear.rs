@@ -255,6 +255,8 @@ fn step_matrix(arg: &'static str, arr: &Array<'_>) -> PyResult<StepMatrix> {
 #[pyclass(module = "kfast._kfast", name = "NonlinearModel", frozen)]
 pub(super) struct PyNonlinearModel {
     inner: nonlinear::NonlinearModel,
+    /// The same model, shared with the streaming filters made from it.
+    shared: Arc<nonlinear::NonlinearModel>,
 }
 
 #[pymethods]
@@ -279,7 +281,7 @@ impl PyNonlinearModel {
         let f = point_function("f", f, (jac_f, hess_f), n, n)?;
         let h = point_function("h", h, (jac_h, hess_h), n, m)?;
         let inner = nonlinear::NonlinearModel::new(f, h, step_matrix("Q", &Q)?, step_matrix("R", &R)?, angles)?;
-        Ok(PyNonlinearModel { inner })
+        Ok(PyNonlinearModel { shared: Arc::new(inner.clone()), inner })
     }
 
     /// The extended Kalman filter; a dict of the FilterResult fields named in `outputs`.
@@ -406,5 +408,101 @@ impl PyNonlinearModel {
         let dict = out.into_dict(py)?;
         dict.set_item("loglik", loglik)?;
         Ok(dict)
+    }
+}
+
+/// The streaming EKF or UKF; `kfast.ExtendedKalmanFilter` and `kfast.UnscentedKalmanFilter`
+/// wrap it.
+#[pyclass(module = "kfast._kfast", name = "NonlinearKalmanFilter")]
+pub(super) struct PyNonlinearKalmanFilter {
+    inner: nonlinear::NonlinearKalmanFilter,
+}
+
+#[pymethods]
+impl PyNonlinearKalmanFilter {
+    /// `method` "ekf" (with form, iterations, iteration, order) or "ukf" (with points).
+    #[new]
+    #[pyo3(signature = (model, x0, P0, method, points, form="joseph", iterations=0, iteration="book", order=1))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        model: &PyNonlinearModel,
+        x0: Array<'_>,
+        P0: Array<'_>,
+        method: &str,
+        points: (String, f64, f64, f64),
+        form: &str,
+        iterations: usize,
+        iteration: &str,
+        order: usize,
+    ) -> PyResult<Self> {
+        let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
+        let shared = Arc::clone(&model.shared);
+        let inner = match method {
+            "ekf" => {
+                nonlinear::NonlinearKalmanFilter::ekf(shared, x0, p0, ekf_options(form, iterations, iteration, order)?)?
+            }
+            "ukf" => nonlinear::NonlinearKalmanFilter::ukf(shared, x0, p0, sigma_points(points)?)?,
+            other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
+        };
+        Ok(PyNonlinearKalmanFilter { inner })
+    }
+
+    /// The update with y(t); with `h` (a callable or a built-in spec) and `R`, by that sensor.
+    #[pyo3(signature = (y, u=None, h=None, R=None, angles=None))]
+    #[allow(non_snake_case)]
+    fn update(
+        &mut self,
+        py: Python<'_>,
+        y: Array<'_>,
+        u: Option<Array<'_>>,
+        h: Option<&Bound<'_, PyAny>>,
+        R: Option<Array<'_>>,
+        angles: Option<Vec<usize>>,
+    ) -> PyResult<()> {
+        let y = super::data("y", &y, 1)?;
+        let u = u.as_ref().map(|u| super::data("u", u, 1)).transpose()?;
+        let inner = &mut self.inner;
+        match (h, R) {
+            (None, None) => Ok(py.detach(|| inner.update(y, u))?),
+            (Some(h), Some(r)) => {
+                let m = r.shape().first().copied().unwrap_or(0);
+                let r = super::data("R", &r, 2)?;
+                let h = point_function("h", h, (None, None), inner.n_states(), m)?;
+                let angles = angles.unwrap_or_default();
+                let sensor = nonlinear::Sensor { h: &*h, r, angles: &angles };
+                Ok(py.detach(|| inner.update_with(sensor, y, u))?)
+            }
+            _ => Err(KfastError::new_err("h, R: a second sensor needs both its h and its R")),
+        }
+    }
+
+    /// The time update to t + 1.
+    #[pyo3(signature = (u=None))]
+    fn predict(&mut self, py: Python<'_>, u: Option<Array<'_>>) -> PyResult<()> {
+        let u = u.as_ref().map(|u| super::data("u", u, 1)).transpose()?;
+        let inner = &mut self.inner;
+        Ok(py.detach(|| inner.predict(u))?)
+    }
+
+    #[getter]
+    fn x<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        super::to_array(py, self.inner.x(), &[self.inner.x().len()])
+    }
+
+    #[getter(P)]
+    fn p<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = self.inner.x().len();
+        super::to_array(py, self.inner.p(), &[n, n])
+    }
+
+    #[getter]
+    fn t(&self) -> usize {
+        self.inner.t()
+    }
+
+    #[getter]
+    fn loglik(&self) -> f64 {
+        self.inner.loglik()
     }
 }

@@ -1,0 +1,147 @@
+"""Streaming nonlinear filters: the EKF and the UKF one measurement at a time."""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence, cast
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kfast import _kfast
+from kfast._args import choice, index
+from kfast._arrays import as_float64
+from kfast._typing import Form, Iteration
+from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _spec
+from kfast.sigma import SigmaPoints, merwe
+
+__all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter"]
+
+
+class _Streaming:
+    """What the two streaming filters share: update / predict / step and the state."""
+
+    _core: Any
+    _model: NonlinearModel
+
+    def update(
+        self,
+        y: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        *,
+        h: Any = None,
+        R: Optional[ArrayLike] = None,
+        angles: Optional[Sequence[int]] = None,
+    ) -> None:
+        """The measurement update with y(t) (NaN marks a missing component): x, P become
+        x(t|t), P(t|t). Several updates at one step chain (each starts from the last).
+
+        ``h`` and ``R`` (both) update by another sensor instead of the model's: a callable
+        ``h(X, t, u)``, a compiled function or a built-in, with its own m (R is m x m) and its
+        own angular outputs (``angles``; a built-in brings its own).
+        """
+        y_arr = as_float64("y", y)
+        y_arr = y_arr.reshape(1) if y_arr.ndim == 0 else y_arr
+        u_arr = None if u is None else _vector("u", u)
+        if h is None and R is None:
+            if angles is not None:
+                raise _kfast.KfastError("angles: only with a second sensor's h and R")
+            self._core.update(y_arr, u_arr)
+            return
+        if h is None or R is None:
+            raise _kfast.KfastError("h, R: a second sensor needs both its h and its R")
+        R_arr = as_float64("R", R)
+        R_arr = R_arr.reshape(1, 1) if R_arr.size == 1 and R_arr.ndim < 2 else R_arr
+        if R_arr.ndim != 2:
+            raise _kfast.KfastError(f"R: expected an (m, m) matrix, got shape {R_arr.shape}")
+        declared = tuple(angles) if angles is not None else (h.angles if isinstance(h, BuiltinFunction) else ())
+        self._core.update(y_arr, u_arr, _spec("h", h), R_arr, list(_angles(declared, R_arr.shape[0])))
+
+    def predict(self, u: Optional[ArrayLike] = None) -> None:
+        """The time update to t + 1: x, P become x(t+1|t), P(t+1|t) (from x(t|t), or from
+        x(t|t-1) when there was no update at step t)."""
+        self._core.predict(None if u is None else _vector("u", u))
+
+    def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> None:
+        """``update(y, u)`` then ``predict(u)``."""
+        self.update(y, u)
+        self.predict(u)
+
+    @property
+    def x(self) -> np.ndarray:
+        """x(t|t) after an update, x(t|t-1) otherwise, shape (n,)."""
+        return cast(np.ndarray, self._core.x)
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, shape (n, n)."""
+        return cast(np.ndarray, self._core.P)
+
+    @property
+    def t(self) -> int:
+        """The current step (0 at the start; ``predict`` advances it)."""
+        return int(self._core.t)
+
+    @property
+    def loglik(self) -> float:
+        """The sum of the updates' log-likelihood terms so far."""
+        return float(self._core.loglik)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(t={self.t}, n={self._model.n_states})"
+
+
+class ExtendedKalmanFilter(_Streaming):
+    """The EKF of a :class:`kfast.NonlinearModel` one measurement at a time, from the prior
+    (x0, P0) = x(0|-1), P(0|-1): ``update(y)`` then ``predict()`` per step, as
+    :class:`kfast.KalmanFilter`. The same steps give the numbers of :meth:`NonlinearModel.ekf`.
+    Options as there (``iterations``, ``iteration``, ``form``, ``order``).
+
+    >>> ct = kfast.models.coordinated_turn(dt=0.1, q=1.0, sigma_omega=0.05)
+    >>> model = kfast.NonlinearModel(ct, kfast.models.range_bearing(), ct.Q, np.diag([1.0, 1e-4]), n=5)
+    >>> ekf = kfast.ExtendedKalmanFilter(model, [100, 50, 5, -2, 0.1], np.diag([100, 100, 4, 4, 0.01]))
+    >>> ekf.update([111.8, 0.4636]); ekf.predict()
+    >>> ekf.t, ekf.x.shape
+    (1, (5,))
+    """
+
+    def __init__(
+        self,
+        model: NonlinearModel,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        form: Form = "joseph",
+        order: int = 1,
+    ) -> None:
+        self._model = _model(model)
+        choice("iteration", iteration, ("book", "gauss-newton"))
+        choice("form", form, ("joseph", "standard"))
+        x, P = model._data(np.zeros((1, model.n_obs)), x0, P0, None)[1:3]
+        self._core = _kfast.NonlinearKalmanFilter(
+            model._core, x, P, "ekf", merwe()._spec(), form=form, iterations=index("iterations", iterations),
+            iteration=iteration, order=index("order", order),
+        )
+
+
+class UnscentedKalmanFilter(_Streaming):
+    """The UKF of a :class:`kfast.NonlinearModel` one measurement at a time, from the prior
+    (x0, P0) = x(0|-1), P(0|-1), with the sigma points ``points`` (``kfast.sigma.merwe()`` by
+    default). The same steps give the numbers of :meth:`NonlinearModel.ukf`."""
+
+    def __init__(self, model: NonlinearModel, x0: ArrayLike, P0: ArrayLike, points: Optional[SigmaPoints] = None) -> None:
+        self._model = _model(model)
+        points = model._points(points)
+        x, P = model._data(np.zeros((1, model.n_obs)), x0, P0, None)[1:3]
+        self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec())
+
+
+def _model(model: Any) -> NonlinearModel:
+    if not isinstance(model, NonlinearModel):
+        raise _kfast.KfastError(f"model: expected a kfast.NonlinearModel, got {type(model).__name__}")
+    return model
+
+
+def _vector(name: str, value: ArrayLike) -> np.ndarray:
+    arr = as_float64(name, value)
+    return arr.reshape(1) if arr.ndim == 0 else arr
