@@ -47,6 +47,9 @@ from kfast.sampling import discretize
 __all__ = [
     "coordinated_turn",
     "range_bearing",
+    "bearings_only",
+    "range_bearing_elevation",
+    "ungm",
     "random_constant",
     "random_walk",
     "random_ramp",
@@ -894,3 +897,53 @@ def range_bearing(sensor=(0.0, 0.0)) -> BuiltinFunction:
     if s.shape != (2,):
         raise KfastError(f"sensor: expected two coordinates (sx, sy), got shape {s.shape}")
     return BuiltinFunction("range_bearing", (float(s[0]), float(s[1])), dim_out=2, angles=(1,))
+
+
+def bearings_only(sensor=(0.0, 0.0)) -> BuiltinFunction:
+    """A bearings-only sensor at ``sensor`` = (sx, sy): y = atan2(py - sy, px - sx) of the
+    state's position (its first two components), m = 1, declared an angle (wrapped). The
+    bearing row of :func:`range_bearing`; undefined at the sensor (the filters raise, naming
+    the step).
+
+    >>> kfast.models.bearings_only((0.0, 0.0)).angles
+    (0,)
+    """
+    s = finite_vector("sensor", sensor, "(the sensor position)")
+    if s.shape != (2,):
+        raise KfastError(f"sensor: expected two coordinates (sx, sy), got shape {s.shape}")
+    return BuiltinFunction("bearing", (float(s[0]), float(s[1])), dim_out=1, angles=(0,))
+
+
+def range_bearing_elevation(sensor=(0.0, 0.0, 0.0)) -> BuiltinFunction:
+    """A 3-D radar at ``sensor`` = (sx, sy, sz) seeing the state's position (its first three
+    components): y = (range r, azimuth atan2(dy, dx), elevation atan2(dz, rho)) with d = p - s,
+    rho = sqrt(dx^2 + dy^2); the azimuth is declared an angle (wrapped). Undefined straight above
+    or below the sensor (rho = 0): the filters raise, naming the step.
+
+    >>> kfast.models.range_bearing_elevation((0.0, 0.0, 10.0)).params
+    (0.0, 0.0, 10.0)
+    """
+    s = finite_vector("sensor", sensor, "(the sensor position)")
+    if s.shape != (3,):
+        raise KfastError(f"sensor: expected three coordinates (sx, sy, sz), got shape {s.shape}")
+    return BuiltinFunction("range_bearing_elevation", tuple(float(v) for v in s), dim_out=3, angles=(1,))
+
+
+def ungm(q=10.0, r=1.0):
+    """The univariate nonstationary growth model (Kitagawa 1996; Gordon, Salmond & Smith 1993),
+    in Rust, as a :class:`kfast.NonlinearModel` (n = m = 1)::
+
+        x[t+1] = x/2 + 25 x/(1 + x^2) + 8 cos(1.2 t) + w,   w ~ N(0, q)
+        y[t]   = x^2/20 + v,                               v ~ N(0, r)
+
+    with t the step of the transition t -> t+1 (papers differ between cos(1.2 t) and
+    cos(1.2 (t+1))). The standard benchmark of nonlinear filters (the EKF does badly on it).
+
+    >>> model = kfast.models.ungm()
+    >>> model.ekf([[0.5], [1.0]], x0=[0.0], P0=[[5.0]]).x_filt.shape
+    (2, 1)
+    """
+    from kfast.nonlinear.model import NonlinearModel
+
+    q, r = _nonneg("q", q), _positive("r", r)
+    return NonlinearModel(BuiltinFunction("ungm", ()), BuiltinFunction("ungm_measurement", (), dim_out=1), [[q]], [[r]], n=1)

@@ -54,12 +54,14 @@ class NonlinearModel:
 
     Parameters
     ----------
-    f, h : callable or BuiltinFunction
+    f, h : callable, BuiltinFunction or LinearGaussian
         Either a Python function vectorized over a batch of points, ``f(X, t, u)`` with X of
         shape (k, n) (one point per row), t the integer step and u the input row u[t] (None
         without inputs), returning shape (k, n) for f and (k, m) for h -- the filter calls it
         once per step for all its points (one sigma-point set, or the 2n points of a difference
-        Jacobian) -- or a built-in model from :mod:`kfast.models`, which runs in Rust -- or a
+        Jacobian) -- or a built-in model from :mod:`kfast.models`, which runs in Rust (a
+        ``LinearGaussian`` from the catalogue gives its F as f or its H as h, so that e.g.
+        ``constant_velocity`` dynamics compose with a ``range_bearing`` sensor) -- or a
         compiled function of the C signature ``C_SIGNATURE`` (a numba ``@cfunc``, a
         ``scipy.LowLevelCallable`` or a ctypes function pointer), which the Rust loop calls
         directly without the GIL: ``void f(const double *X, intptr_t k, intptr_t n, int64_t t,
@@ -100,8 +102,8 @@ class NonlinearModel:
 
     def __init__(
         self,
-        f: Union[PointFunction, BuiltinFunction],
-        h: Union[PointFunction, BuiltinFunction],
+        f: Union[PointFunction, BuiltinFunction, "LinearGaussian"],
+        h: Union[PointFunction, BuiltinFunction, "LinearGaussian"],
         Q: ArrayLike,
         R: ArrayLike,
         n: int,
@@ -334,6 +336,13 @@ def _spec(name: str, fn: Any) -> Any:
     ("cfunc", address) for a compiled function."""
     if isinstance(fn, BuiltinFunction):
         return (fn.kind, fn.params)
+    from kfast.linear.model import LinearGaussian
+
+    if isinstance(fn, LinearGaussian):  # its F as f, its H as h: a linear part of a nonlinear model
+        part = fn.F if name == "f" else fn.H
+        if part.ndim != 2 or fn.B is not None or fn.D is not None:
+            raise _kfast.KfastError(f"{name}: a LinearGaussian used as {name} needs a constant {'F' if name == 'f' else 'H'} and no B or D")
+        return ("linear", part)
     address = _compiled_address(name, fn)
     if address is not None:
         return ("cfunc", address)

@@ -211,3 +211,158 @@ mod tests {
         }
     }
 }
+
+/// A bearings-only sensor at `sensor` = (s_x, s_y): `y = atan2(d_y, d_x)` of the position
+/// (x₀, x₁) of an n-state, `d = (x₀ − s_x, x₁ − s_y)`: the bearing row of [`RangeBearing`].
+#[derive(Debug, Clone, Copy)]
+pub struct Bearing(RangeBearing);
+
+impl Bearing {
+    /// The sensor at `sensor` for a state of `n ≥ 2` components whose first two are the position.
+    pub fn new(sensor: [f64; 2], n: usize) -> Result<Self> {
+        Ok(Bearing(RangeBearing::new(sensor, n)?))
+    }
+}
+
+impl PointFunction for Bearing {
+    fn dim_in(&self) -> usize {
+        self.0.n
+    }
+
+    fn dim_out(&self) -> usize {
+        1
+    }
+
+    fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        for (x, o) in points.chunks_exact(self.0.n).zip(out.iter_mut()).take(k) {
+            let (dx, dy) = self.0.offset(x);
+            *o = dy.atan2(dx);
+        }
+        Ok(())
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let n = self.0.n;
+        for (x, j) in points.chunks_exact(n).zip(out.chunks_exact_mut(n)).take(k) {
+            let (dx, dy) = self.0.offset(x);
+            let r2 = dx * dx + dy * dy;
+            if r2.is_nan() || r2 <= 0.0 {
+                return Some(Err(Error::arg_at("h", t, "the bearing is undefined at the sensor's position (range 0)")));
+            }
+            j.fill(0.0);
+            j[..2].copy_from_slice(&[-dy / r2, dx / r2]);
+        }
+        Some(Ok(()))
+    }
+}
+
+/// A 3-D range–bearing–elevation sensor at `sensor` = (s_x, s_y, s_z) seeing the position
+/// (x₀, x₁, x₂) of an n-state: `y = (r, θ, φ)` with `d = p − s`, `ρ = √(d_x² + d_y²)`,
+/// `r = √(ρ² + d_z²)`, azimuth `θ = atan2(d_y, d_x)` and elevation `φ = atan2(d_z, ρ)`.
+/// The azimuth is an angle (wrap it: `angles = [1]`).
+#[derive(Debug, Clone, Copy)]
+pub struct RangeBearingElevation {
+    sensor: [f64; 3],
+    n: usize,
+}
+
+impl RangeBearingElevation {
+    /// The sensor at `sensor` for a state of `n ≥ 3` components whose first three are the
+    /// position.
+    pub fn new(sensor: [f64; 3], n: usize) -> Result<Self> {
+        if sensor.iter().any(|v| !v.is_finite()) {
+            return Err(Error::arg("sensor", format!("must be finite, got {sensor:?}")));
+        }
+        if n < 3 {
+            return Err(Error::arg("n", format!("a 3-D sensor needs a 3-D position (n ≥ 3), got n = {n}")));
+        }
+        Ok(RangeBearingElevation { sensor, n })
+    }
+}
+
+impl PointFunction for RangeBearingElevation {
+    fn dim_in(&self) -> usize {
+        self.n
+    }
+
+    fn dim_out(&self) -> usize {
+        3
+    }
+
+    fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        for (x, o) in points.chunks_exact(self.n).zip(out.chunks_exact_mut(3)).take(k) {
+            let [dx, dy, dz] = [x[0] - self.sensor[0], x[1] - self.sensor[1], x[2] - self.sensor[2]];
+            let rho = dx.hypot(dy);
+            o.copy_from_slice(&[rho.hypot(dz), dy.atan2(dx), dz.atan2(rho)]);
+        }
+        Ok(())
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        let n = self.n;
+        for (x, j) in points.chunks_exact(n).zip(out.chunks_exact_mut(3 * n)).take(k) {
+            let [dx, dy, dz] = [x[0] - self.sensor[0], x[1] - self.sensor[1], x[2] - self.sensor[2]];
+            let rho2 = dx * dx + dy * dy;
+            let r2 = rho2 + dz * dz;
+            if rho2.is_nan() || rho2 <= 0.0 {
+                return Some(Err(Error::arg_at(
+                    "h",
+                    t,
+                    "the azimuth is undefined with the target straight above or below the sensor",
+                )));
+            }
+            let (rho, r) = (rho2.sqrt(), r2.sqrt());
+            j.fill(0.0);
+            j[..3].copy_from_slice(&[dx / r, dy / r, dz / r]);
+            j[n..n + 2].copy_from_slice(&[-dy / rho2, dx / rho2]);
+            j[2 * n..2 * n + 3].copy_from_slice(&[-dx * dz / (r2 * rho), -dy * dz / (r2 * rho), rho / r2]);
+        }
+        Some(Ok(()))
+    }
+}
+
+/// The univariate nonstationary growth model (Kitagawa 1996; Gordon, Salmond & Smith 1993):
+/// `x[t+1] = x/2 + 25 x/(1 + x²) + 8 cos(1.2 t)` (t the step of the transition t → t+1) as f,
+/// or its measurement `y = x²/20` as h ([`Ungm::measurement`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Ungm {
+    measurement: bool,
+}
+
+impl Ungm {
+    /// The transition f.
+    pub fn transition() -> Self {
+        Ungm { measurement: false }
+    }
+
+    /// The measurement h.
+    pub fn measurement() -> Self {
+        Ungm { measurement: true }
+    }
+}
+
+impl PointFunction for Ungm {
+    fn dim_in(&self) -> usize {
+        1
+    }
+
+    fn dim_out(&self) -> usize {
+        1
+    }
+
+    fn eval(&self, points: &[f64], k: usize, t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        let forcing = 8.0 * (1.2 * t as f64).cos();
+        for (x, o) in points.iter().zip(out.iter_mut()).take(k) {
+            *o = if self.measurement { x * x / 20.0 } else { x / 2.0 + 25.0 * x / (1.0 + x * x) + forcing };
+        }
+        Ok(())
+    }
+
+    fn jacobian(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
+        for (x, o) in points.iter().zip(out.iter_mut()).take(k) {
+            let q = 1.0 + x * x;
+            *o = if self.measurement { x / 10.0 } else { 0.5 + 25.0 * (1.0 - x * x) / (q * q) };
+        }
+        Some(Ok(()))
+    }
+}

@@ -11,7 +11,7 @@ use pyo3::types::{PyDict, PyTuple};
 use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
-use crate::nonlinear::models::{CoordinatedTurn, RangeBearing};
+use crate::nonlinear::models::{Bearing, CoordinatedTurn, RangeBearing, RangeBearingElevation, Ungm};
 use crate::nonlinear::{self, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod};
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
@@ -174,6 +174,16 @@ fn point_function(
                 let (sx, sy): (f64, f64) = params.extract()?;
                 Arc::new(RangeBearing::new([sx, sy], n)?)
             }
+            "bearing" => {
+                let (sx, sy): (f64, f64) = params.extract()?;
+                Arc::new(Bearing::new([sx, sy], n)?)
+            }
+            "range_bearing_elevation" => {
+                let (sx, sy, sz): (f64, f64, f64) = params.extract()?;
+                Arc::new(RangeBearingElevation::new([sx, sy, sz], n)?)
+            }
+            "ungm" => Arc::new(Ungm::transition()),
+            "ungm_measurement" => Arc::new(Ungm::measurement()),
             "cfunc" => {
                 let address: usize = params.extract()?;
                 if address == 0 {
