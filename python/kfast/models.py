@@ -896,7 +896,7 @@ def range_bearing(sensor=(0.0, 0.0)) -> BuiltinFunction:
     s = finite_vector("sensor", sensor, "(the sensor position)")
     if s.shape != (2,):
         raise KfastError(f"sensor: expected two coordinates (sx, sy), got shape {s.shape}")
-    return BuiltinFunction("range_bearing", (float(s[0]), float(s[1])), dim_out=2, angles=(1,))
+    return BuiltinFunction("range_bearing", (float(s[0]), float(s[1])), angles=(1,))
 
 
 def bearings_only(sensor=(0.0, 0.0)) -> BuiltinFunction:
@@ -911,7 +911,7 @@ def bearings_only(sensor=(0.0, 0.0)) -> BuiltinFunction:
     s = finite_vector("sensor", sensor, "(the sensor position)")
     if s.shape != (2,):
         raise KfastError(f"sensor: expected two coordinates (sx, sy), got shape {s.shape}")
-    return BuiltinFunction("bearing", (float(s[0]), float(s[1])), dim_out=1, angles=(0,))
+    return BuiltinFunction("bearing", (float(s[0]), float(s[1])), angles=(0,))
 
 
 def range_bearing_elevation(sensor=(0.0, 0.0, 0.0)) -> BuiltinFunction:
@@ -926,7 +926,7 @@ def range_bearing_elevation(sensor=(0.0, 0.0, 0.0)) -> BuiltinFunction:
     s = finite_vector("sensor", sensor, "(the sensor position)")
     if s.shape != (3,):
         raise KfastError(f"sensor: expected three coordinates (sx, sy, sz), got shape {s.shape}")
-    return BuiltinFunction("range_bearing_elevation", tuple(float(v) for v in s), dim_out=3, angles=(1,))
+    return BuiltinFunction("range_bearing_elevation", tuple(float(v) for v in s), angles=(1,))
 
 
 def ungm(q=10.0, r=1.0):
@@ -946,4 +946,4 @@ def ungm(q=10.0, r=1.0):
     from kfast.nonlinear.model import NonlinearModel
 
     q, r = _nonneg("q", q), _positive("r", r)
-    return NonlinearModel(BuiltinFunction("ungm", ()), BuiltinFunction("ungm_measurement", (), dim_out=1), [[q]], [[r]], n=1)
+    return NonlinearModel(BuiltinFunction("ungm", ()), BuiltinFunction("ungm_measurement", ()), [[q]], [[r]], n=1)

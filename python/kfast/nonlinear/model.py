@@ -37,8 +37,6 @@ class BuiltinFunction:
     kind: str
     params: Any
     """The model's parameters: a tuple of numbers, or the matrix of a linear map."""
-    dim_out: Optional[int] = None
-    """Outputs (None: n, for a transition)."""
     Q: Optional[np.ndarray] = field(default=None, repr=False)
     """The process noise covariance that goes with a transition model, if it has one."""
     angles: tuple = ()
@@ -147,7 +145,7 @@ class NonlinearModel:
             raise _kfast.KfastError("model: a model with B, D or N has no nonlinear form here")
         return cls(
             BuiltinFunction("linear", model.F),
-            BuiltinFunction("linear", model.H, dim_out=model.n_obs),
+            BuiltinFunction("linear", model.H),
             model.Q,
             model.R,
             n=model.n_states,
@@ -312,14 +310,19 @@ class NonlinearModel:
         names = _output_names(outputs)
         return list(_FIELDS) if names is None else names
 
-    def _data(
-        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike]
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray]]:
-        y_arr = _column_if_1d(as_float64("y", y), self.n_obs)
+    def _prior(self, x0: ArrayLike, P0: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The prior as float64; scalars (size 1) for a scalar state."""
         x, P = as_float64("x0", x0), as_float64("P0", P0)
         if self.n_states == 1:
             x = x.reshape(1) if x.size == 1 else x
             P = P.reshape(1, 1) if P.size == 1 else P
+        return x, P
+
+    def _data(
+        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray]]:
+        y_arr = _column_if_1d(as_float64("y", y), self.n_obs)
+        x, P = self._prior(x0, P0)
         u_arr = None if u is None else as_float64("u", u)
         if u_arr is not None and u_arr.ndim == 1:
             u_arr = u_arr[:, None]

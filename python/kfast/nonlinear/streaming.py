@@ -117,7 +117,7 @@ class ExtendedKalmanFilter(_Streaming):
         self._model = _model(model)
         choice("iteration", iteration, ("book", "gauss-newton"))
         choice("form", form, ("joseph", "standard"))
-        x, P = model._data(np.zeros((1, model.n_obs)), x0, P0, None)[1:3]
+        x, P = model._prior(x0, P0)
         self._core = _kfast.NonlinearKalmanFilter(
             model._core, x, P, "ekf", merwe()._spec(), form=form, iterations=index("iterations", iterations),
             iteration=iteration, order=index("order", order),
@@ -132,7 +132,7 @@ class UnscentedKalmanFilter(_Streaming):
     def __init__(self, model: NonlinearModel, x0: ArrayLike, P0: ArrayLike, points: Optional[SigmaPoints] = None) -> None:
         self._model = _model(model)
         points = model._points(points)
-        x, P = model._data(np.zeros((1, model.n_obs)), x0, P0, None)[1:3]
+        x, P = model._prior(x0, P0)
         self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec())
 
 
