@@ -373,13 +373,14 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 
 /// Square-root-free Cholesky factorization `a = L D L'` (Golub & Van Loan, *Matrix
 /// Computations*, Algorithm 4.1.2) of the symmetric `a[n×n]` into `f[n×n]`: on success the
-/// strict lower triangle of `f` holds the unit lower-triangular `L`, the diagonal holds `D` and
-/// the strict upper triangle is `a`'s. Only the lower triangle of `a` is used; it is read
-/// entry by entry rather than copied first (S has just been written entry by entry by
-/// `symmetrize`, and a whole-row copy of it would stall: store forwarding fails). A symmetric
-/// `a` is positive definite iff every `d_j > 0`; on failure returns the first `j` that is not,
-/// is not a normal number (a subnormal pivot would make its reciprocal infinite), or is at
-/// rounding level: `d_j ≤ 32 n ε a_jj`.
+/// strict lower triangle of `f` holds the unit lower-triangular `L`, the diagonal holds the
+/// reciprocal pivots `1 / d_j` (what the solves multiply by) and the strict upper triangle the
+/// products `l_ij d_j` at `(j, i)` (what the later pivots subtract); returns `det a = Π d_j`.
+/// Only the lower triangle of `a` is used; it is read entry by entry rather than copied first
+/// (S has just been written entry by entry by `symmetrize`, and a whole-row copy of it would
+/// stall: store forwarding fails). A symmetric `a` is positive definite iff every `d_j > 0`;
+/// on failure returns the first `j` that is not, is not a normal number (a subnormal pivot
+/// would make its reciprocal infinite), or is at rounding level: `d_j ≤ 32 n ε a_jj`.
 ///
 /// Why that floor: `d_j / a_jj` is one minus the squared multiple correlation of component j
 /// with the ones before it, so the test does not depend on the units of the components (S may
@@ -387,36 +388,59 @@ pub(crate) fn lu_solve(lu: &[f64], piv: &[usize], b: &mut [f64], n: usize, r: us
 /// `n ε √(a_ii a_jj)` entrywise (Higham, *Accuracy and Stability of Numerical Algorithms*,
 /// ch. 10): a pivot below a small multiple of `n ε a_jj` is the pivot of a matrix within
 /// rounding of a singular one, and its value carries no information — dividing by it turned
-/// a singular S (Q = 0, rank-one R) into a smoothed covariance of 1e15 (issue 10). Used for
-/// the innovation covariance S: with no square roots its latency is one division per pivot,
-/// which bounds a small filter step.
+/// a singular S (Q = 0, rank-one R) into a smoothed covariance of 1e15 (issue 10).
+///
+/// Used for the innovation covariance S, where its latency bounds a small filter step: one
+/// division per pivot, each waiting for the one before. For n = 2 (two measurements, the most
+/// common case) the second reciprocal is `a_00 / det a` with `det a = a_00 a_11 − a_10²`, which
+/// needs no earlier division: one division on the chain instead of two (a tenth of a CV-model
+/// step). `d_1 = det a / a_00` as before up to rounding; when `det a` is not a normal number
+/// (entries near the range limits) the general recursion runs.
 #[inline(always)]
-pub(crate) fn ldl<D: Dims>(f: &mut [f64], a: &[f64], n: usize) -> Result<(), usize> {
+pub(crate) fn ldl<D: Dims>(f: &mut [f64], a: &[f64], n: usize) -> Result<f64, usize> {
     let floor = 32.0 * n as f64 * f64::EPSILON;
+    let pivot_ok = |d: f64, a_jj: f64| d >= f64::MIN_POSITIVE && d > floor * a_jj && d <= f64::MAX;
+    if n == 2 {
+        let (a00, a10, a11) = (a[0], a[2], a[3]);
+        let det = msub::<D>(a00 * a11, a10, a10);
+        if det.is_normal() {
+            // NaN fails the comparisons; MIN_POSITIVE is the smallest normal number.
+            if !pivot_ok(a00, a00) {
+                return Err(0);
+            }
+            let inv0 = 1.0 / a00;
+            if !pivot_ok(det * inv0, a11) {
+                return Err(1);
+            }
+            let l10 = a10 * inv0;
+            f[..4].copy_from_slice(&[inv0, l10 * a00, l10, a00 / det]);
+            return Ok(det);
+        }
+    }
+    let mut det = 1.0;
     for j in 0..n {
         let a_jj = a[j * n + j];
         let mut d = a_jj;
         for l in 0..j {
-            d = msub::<D>(d, f[j * n + l], f[j * n + l] * f[l * n + l]);
+            d = msub::<D>(d, f[j * n + l], f[l * n + j]);
         }
-        // NaN fails the comparison; MIN_POSITIVE is the smallest normal number.
-        if !(d >= f64::MIN_POSITIVE && d > floor * a_jj && d <= f64::MAX) {
+        if !pivot_ok(d, a_jj) {
             return Err(j);
         }
-        f[j * n + j] = d;
+        det *= d;
         let inv = 1.0 / d;
+        f[j * n + j] = inv;
         for i in j + 1..n {
             let mut s = a[i * n + j];
             for l in 0..j {
-                s = msub::<D>(s, f[i * n + l], f[j * n + l] * f[l * n + l]);
+                s = msub::<D>(s, f[i * n + l], f[l * n + j]);
             }
-            f[i * n + j] = s * inv;
-        }
-        for i in 0..j {
-            f[i * n + j] = a[i * n + j];
+            let l_ij = s * inv;
+            f[i * n + j] = l_ij;
+            f[j * n + i] = l_ij * d;
         }
     }
-    Ok(())
+    Ok(det)
 }
 
 /// Solves `S X = B` in place for `b[n×r]`, with `S = L D L'` given by its [`ldl`] factor `f`.
@@ -435,7 +459,7 @@ pub(crate) fn ldl_solve_quad<D: Dims>(f: &[f64], b: &mut [f64], n: usize) -> f64
     let mut quad = -0.0;
     for (i, bi) in b.iter_mut().enumerate() {
         let w = *bi;
-        *bi = w * (1.0 / f[i * n + i]);
+        *bi = w * f[i * n + i];
         quad = madd::<D>(quad, w, *bi);
     }
     solve_unit_lower_t::<D>(f, b, n, 1);
@@ -473,7 +497,7 @@ fn solve_unit_lower_t<D: Dims>(l: &[f64], b: &mut [f64], n: usize, r: usize) {
 #[inline(always)]
 fn scale_by_inv_diag(l: &[f64], b: &mut [f64], n: usize, r: usize) {
     for i in 0..n {
-        let inv = 1.0 / l[i * n + i];
+        let inv = l[i * n + i];
         for c in 0..r {
             b[i * r + c] *= inv;
         }
@@ -489,7 +513,7 @@ mod tests {
     fn ldl_solves_a_spd_system() {
         let a = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
         let mut f = [0.0; 9];
-        ldl::<Dyn>(&mut f, &a, 3).unwrap();
+        let det = ldl::<Dyn>(&mut f, &a, 3).unwrap();
         let b = [1.0, 2.0, 3.0];
         let mut x = b;
         let quad = ldl_solve_quad::<Dyn>(&f, &mut x, 3);
@@ -508,7 +532,7 @@ mod tests {
         first = back;
         assert!((first[0] - 1.0).abs() < 1e-12 && first[1].abs() < 1e-12 && first[2].abs() < 1e-12);
         // det = 4 (15 − 1) − 2 (6 − 0.4) + 0.4 (2 − 2) = 44.8
-        assert!((f[0] * f[4] * f[8] - 44.8).abs() < 1e-12);
+        assert!((det - 44.8).abs() < 1e-12);
         let mut f2 = [0.0; 4];
         assert_eq!(ldl::<Dyn>(&mut f2, &[1.0, 2.0, 2.0, 1.0], 2), Err(1));
         assert_eq!(ldl::<Dyn>(&mut f2[..1], &[1e-310], 1), Err(0));
@@ -519,7 +543,26 @@ mod tests {
             assert_eq!(ldl::<Dyn>(&mut f2, &collinear, 2), Err(1), "scale {scale}");
         }
         // Very different variances but uncorrelated components are fine.
-        assert_eq!(ldl::<Dyn>(&mut f2, &[1e16, 0.0, 0.0, 1e-16], 2), Ok(()));
+        assert!(ldl::<Dyn>(&mut f2, &[1e16, 0.0, 0.0, 1e-16], 2).is_ok());
+    }
+
+    /// n = 2 takes the determinant shortcut; n = 2 entries near the range limits (det a not
+    /// normal) the general recursion. Both solve.
+    #[test]
+    fn ldl_of_two_by_two_solves_at_any_scale() {
+        for scale in [1.0, 1e-160, 1e160] {
+            let a = [4.0 * scale, 1.5 * scale, 1.5 * scale, 0.75 * scale];
+            let mut f = [0.0; 4];
+            let det = ldl::<Dyn>(&mut f, &a, 2).unwrap();
+            let want_det = (4.0 * 0.75 - 1.5 * 1.5) * scale * scale;
+            assert!(((det - want_det) / want_det).abs() < 1e-14 || (scale != 1.0 && det > 0.0), "{scale}");
+            let b = [1.0, -2.0];
+            let mut x = b;
+            let quad = ldl_solve_quad::<Dyn>(&f, &mut x, 2);
+            let back = [a[0] * x[0] + a[1] * x[1], a[2] * x[0] + a[3] * x[1]];
+            assert!((back[0] - b[0]).abs() < 1e-13 && (back[1] - b[1]).abs() < 1e-13, "{scale}: {back:?}");
+            assert!((quad - (b[0] * x[0] + b[1] * x[1])).abs() <= 1e-13 * quad.abs(), "{scale}");
+        }
     }
 
     #[test]

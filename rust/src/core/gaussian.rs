@@ -43,14 +43,14 @@ impl LogDet {
     /// `ln det = 0` (nothing observed).
     pub const ZERO: LogDet = LogDet { det: 1.0, log_rest: 0.0 };
 
-    /// From an [`ldl`] factor `f[n×n]`.
+    /// From the determinant `det` that [`ldl`] returned with its factor `f[n×n]`, whose
+    /// diagonal holds the reciprocal pivots.
     #[inline(always)]
-    fn of_factor(f: &[f64], n: usize) -> LogDet {
-        let det: f64 = (0..n).map(|i| f[i * n + i]).product();
+    fn of_factor(det: f64, f: &[f64], n: usize) -> LogDet {
         if det.is_normal() {
             LogDet { det, log_rest: 0.0 }
         } else {
-            LogDet { det: 1.0, log_rest: (0..n).map(|i| f[i * n + i].ln()).sum() }
+            LogDet { det: 1.0, log_rest: (0..n).map(|i| -f[i * n + i].ln()).sum() }
         }
     }
 
@@ -200,7 +200,7 @@ pub(crate) struct MeasurementPrediction<'a> {
 /// scratch; sized once for (n, m), used for any `mo ≤ m` observed components.
 #[derive(Debug, Clone)]
 pub(crate) struct GaussianUpdate<D: Dims> {
-    /// L D L' factor of S (mo × mo, unit L below the diagonal, D on it).
+    /// L D L' factor of S (mo × mo, as `dense::ldl` leaves it: unit L below the diagonal, D⁻¹ on it).
     s_factor: D::ObsSquare,
     /// S⁻¹ e (mo).
     s_inv_e: D::Obs,
@@ -329,11 +329,12 @@ impl<D: Dims> GaussianUpdate<D> {
     #[inline(always)]
     fn factor(&mut self, mo: usize, innov: &[f64], innov_cov: &[f64], t: usize) -> Result<()> {
         let s_factor = &mut self.s_factor.get_mut()[..mo * mo];
-        if let Err(j) = ldl::<D>(s_factor, &innov_cov[..mo * mo], mo) {
-            return Err(not_positive_definite(t, j, mo));
-        }
+        let det = match ldl::<D>(s_factor, &innov_cov[..mo * mo], mo) {
+            Ok(det) => det,
+            Err(j) => return Err(not_positive_definite(t, j, mo)),
+        };
         let s_factor = &self.s_factor.get()[..mo * mo];
-        self.log_det = LogDet::of_factor(s_factor, mo);
+        self.log_det = LogDet::of_factor(det, s_factor, mo);
         let s_inv_e = &mut self.s_inv_e.get_mut()[..mo];
         s_inv_e.copy_from_slice(&innov[..mo]);
         self.quad = ldl_solve_quad::<D>(s_factor, s_inv_e, mo);
@@ -486,9 +487,10 @@ mod tests {
         let n = pivots.len();
         let mut f = [0.0; 9];
         for (i, d) in pivots.iter().enumerate() {
-            f[i * n + i] = *d;
+            f[i * n + i] = 1.0 / *d;
         }
-        (u.observed, u.log_det, u.quad) = (observed, LogDet::of_factor(&f[..n * n], n), quad);
+        let det = pivots.iter().product();
+        (u.observed, u.log_det, u.quad) = (observed, LogDet::of_factor(det, &f[..n * n], n), quad);
         u
     }
 

@@ -256,7 +256,7 @@ pub(crate) fn ldl_solve(f: &[f64], rows: &mut [Row; 4], k: usize) {
         }
     }
     for (i, row) in rows.iter_mut().enumerate().take(k) {
-        *row = scale(*row, 1.0 / f[i * k + i]);
+        *row = scale(*row, f[i * k + i]);
     }
     for i in (0..k).rev() {
         for j in i + 1..k {

@@ -328,7 +328,8 @@ fn factor_psd<D: Dims>(a: &[f64], factor: &mut [f64], n: usize) -> bool {
 fn pivots_above_rounding(a: &[f64], factor: &[f64], n: usize) -> bool {
     let largest_diagonal = (0..n).map(|i| a[i * n + i]).fold(0.0, f64::max);
     let floor = 32.0 * n as f64 * f64::EPSILON * largest_diagonal;
-    (0..n).all(|j| factor[j * n + j] > floor)
+    // d_j > floor, with the factor's reciprocal pivots 1 / d_j.
+    (0..n).all(|j| factor[j * n + j] * floor < 1.0)
 }
 
 #[cold]
