@@ -333,12 +333,11 @@ fn bench_batch(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("batch_cv_200x500");
     g.throughput(Throughput::Elements((SERIES * T) as u64));
-    let batch =
-        Batch { y: &y, series: SERIES, steps: T, u: None, u_shared: false, x0: &x0, p0: &p0, form: UpdateForm::Joseph };
+    let batch = Batch { y: &y, series: SERIES, steps: T, u: None, u_shared: false, x0: &x0, p0: &p0 };
     g.bench_function("filter_batch", |b| {
         b.iter(|| {
             let out = BatchOutputs { x_filt: &mut x_filt, p_filt: Some(&mut p_filt), loglik: &mut ll };
-            let shared = filter_batch(&model, black_box(batch), out, None).unwrap();
+            let shared = filter_batch(&model, black_box(batch), UpdateForm::Joseph, out, None).unwrap();
             assert!(shared);
         })
     });

@@ -34,6 +34,7 @@ from kfast.linear.model import (
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
+from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -64,6 +65,8 @@ __all__ = [
     "KalmanFilter",
     "FixedLagSmoother",
     "filter_batch",
+    "ekf_batch",
+    "ukf_batch",
     "BatchResult",
     "fit",
     "FitResult",

@@ -203,6 +203,21 @@ class NonlinearModel:
         iteration: Iteration = "book",
         order: int = 1,
     ) -> dict[str, Any]: ...
+    def batch(
+        self,
+        Y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        method: str,
+        points: tuple[str, float, float, float],
+        u: Optional[NDArray[np.float64]] = None,
+        return_covs: bool = True,
+        threads: Optional[int] = None,
+        form: Form = "joseph",
+        iterations: int = 0,
+        iteration: Iteration = "book",
+        order: int = 1,
+    ) -> dict[str, Any]: ...
 
 class NonlinearKalmanFilter:
     """The streaming EKF (method "ekf") or UKF ("ukf") of a compiled NonlinearModel;

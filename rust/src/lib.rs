@@ -63,10 +63,11 @@ mod python;
 pub mod riccati;
 pub mod sampling;
 
+pub use self::core::batch::{Batch, BatchOutputs};
 pub use self::core::isa::{deterministic, instruction_set, set_deterministic};
 pub use self::core::Series;
 pub use error::{Error, Result};
-pub use linear::batch::{filter_batch, Batch, BatchOutputs};
+pub use linear::batch::filter_batch;
 pub use linear::filter::{
     filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, UpdateForm,
 };
@@ -78,8 +79,8 @@ pub use linear::smoother::{
     FixedPointResult, SmoothOutputs, SmootherResult,
 };
 pub use nonlinear::{
-    ekf_into, smooth_nonlinear_into, ukf_into, EkfOptions, Iteration, NonlinearKalmanFilter, NonlinearModel,
-    PointFunction, SigmaPoints, SmoothMethod,
+    ekf_batch, ekf_into, smooth_nonlinear_into, ukf_batch, ukf_into, EkfOptions, Iteration, NonlinearKalmanFilter,
+    NonlinearModel, PointFunction, SigmaPoints, SmoothMethod,
 };
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,

@@ -86,10 +86,9 @@ fn check_batch_equals_filter(
         u_shared: setup.inputs == Inputs::Shared,
         x0: &d.x0,
         p0: &d.p0,
-        form,
     };
     let out = BatchOutputs { x_filt: &mut x_filt, p_filt: Some(&mut p_filt), loglik: &mut loglik };
-    let shared = filter_batch(&d.model, batch, out, threads)?;
+    let shared = filter_batch(&d.model, batch, form, out, threads)?;
     assert_eq!(shared, shared_expected, "{what}: shared-covariance path");
     for s in 0..bs {
         let y = Series::new("y", &d.y[s * t * m..(s + 1) * t * m], t, m)?;
@@ -157,17 +156,15 @@ fn thread_count_does_not_change_the_results() -> Result<()> {
         d.series *= reps;
         let run = |threads: Option<usize>| -> Result<(Vec<f64>, Vec<f64>)> {
             let (mut x, mut ll) = (vec![0.0; d.series * t * n], vec![0.0; d.series]);
-            let batch = Batch {
-                y: &d.y,
-                series: d.series,
-                steps: t,
-                u: d.u.as_deref(),
-                u_shared: false,
-                x0: &d.x0,
-                p0: &d.p0,
-                form: UpdateForm::Joseph,
-            };
-            filter_batch(&d.model, batch, BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll }, threads)?;
+            let batch =
+                Batch { y: &d.y, series: d.series, steps: t, u: d.u.as_deref(), u_shared: false, x0: &d.x0, p0: &d.p0 };
+            filter_batch(
+                &d.model,
+                batch,
+                UpdateForm::Joseph,
+                BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll },
+                threads,
+            )?;
             Ok((x, ll))
         };
         let (x1, ll1) = run(Some(1))?;
@@ -199,17 +196,14 @@ fn a_bad_series_is_reported_with_its_index() -> Result<()> {
     let last = bs - 1;
     d.y[(last * t + t - 1) * m] = f64::INFINITY;
     let (mut x, mut ll) = (vec![0.0; bs * t * n], vec![0.0; bs]);
-    let batch = Batch {
-        y: &d.y,
-        series: bs,
-        steps: t,
-        u: None,
-        u_shared: false,
-        x0: &d.x0,
-        p0: &d.p0,
-        form: UpdateForm::Joseph,
-    };
-    match filter_batch(&d.model, batch, BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll }, Some(2)) {
+    let batch = Batch { y: &d.y, series: bs, steps: t, u: None, u_shared: false, x0: &d.x0, p0: &d.p0 };
+    match filter_batch(
+        &d.model,
+        batch,
+        UpdateForm::Joseph,
+        BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll },
+        Some(2),
+    ) {
         Err(err @ Error::InvalidArgument { arg: "Y", .. }) => {
             let msg = err.to_string();
             assert!(msg.contains(&format!("(series {last})")) && msg.contains(&format!("step {}", t - 1)), "{msg}");

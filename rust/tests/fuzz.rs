@@ -162,10 +162,10 @@ proptest! {
         let y = vec![0.25; series * steps];
         let x0 = vec![0.0; x0_len];
         let p0 = [1.0, 0.0, 0.0, 1.0];
-        let batch = Batch { y: &y, series, steps, u: None, u_shared: false, x0: &x0, p0: &p0, form: UpdateForm::Joseph };
+        let batch = Batch { y: &y, series, steps, u: None, u_shared: false, x0: &x0, p0: &p0 };
         let (mut x, mut ll) = (vec![0.0; series * steps * 2], vec![0.0; series]);
         let out = BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll };
-        if let Err(e) = filter_batch(&model, batch, out, threads) {
+        if let Err(e) = filter_batch(&model, batch, UpdateForm::Joseph, out, threads) {
             prop_assert!(named(&e));
         }
     }

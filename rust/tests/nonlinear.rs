@@ -1,13 +1,14 @@
 //! Integration tests of the nonlinear filters through the public API: on a linear model
 //! (f and h linear maps) the EKF, the iterated EKF and the UKF with every sigma-point set are
-//! the Kalman filter; the errors name what failed and the step.
+//! the Kalman filter; the errors name what failed and the step; `ekf_batch` and `ukf_batch`
+//! give each series the results of filtering it alone.
 
 use std::sync::Arc;
 
 use kfast::nonlinear::LinearMap;
 use kfast::{
-    ekf_into, filter, ukf_into, EkfOptions, Error, FilterOutputs, FilterResult, Iteration, LinearGaussian, Matrices,
-    NonlinearModel, Series, SigmaPoints, StepMatrix, UpdateForm,
+    ekf_batch, ekf_into, filter, ukf_batch, ukf_into, Batch, BatchOutputs, EkfOptions, Error, FilterOutputs,
+    FilterResult, Iteration, LinearGaussian, Matrices, NonlinearModel, Series, SigmaPoints, StepMatrix, UpdateForm,
 };
 
 const F: [f64; 9] = [0.9, 0.1, 0.0, -0.2, 0.8, 0.3, 0.0, 0.1, 0.7];
@@ -142,4 +143,51 @@ fn bad_models_are_refused() {
     assert!(err.to_string().starts_with("f: maps 3 states to 2"), "{err}");
     let err = NonlinearModel::new(f.clone(), f, mat(3, 3, &Q), mat(2, 2, &R), vec![]).unwrap_err();
     assert!(err.to_string().starts_with("R: expected (3, 3)"), "{err}");
+}
+
+/// Three series (the data shifted), per-series priors: each series of `ekf_batch` and
+/// `ukf_batch` is bit for bit the single-series filter, on one thread or two.
+#[test]
+fn the_batch_filters_give_each_series_its_own_filter() {
+    let model = nonlinear();
+    let (bs, t, n, m) = (3, 30, 3, 2);
+    let y: Vec<f64> = (0..bs).flat_map(|b| data().into_iter().map(move |v| v + b as f64)).collect();
+    let x0: Vec<f64> = (0..bs).flat_map(|b| X0.map(|v| v * (1.0 + b as f64))).collect();
+    let p0: Vec<f64> = (0..bs).flat_map(|_| P0).collect();
+    let batch = Batch { y: &y, series: bs, steps: t, u: None, u_shared: false, x0: &x0, p0: &p0 };
+    let points = SigmaPoints::Merwe { alpha: 0.5, beta: 2.0, kappa: 0.0 };
+    let options = EkfOptions { iterations: 1, ..EkfOptions::default() };
+    for threads in [Some(1), Some(2)] {
+        for ukf in [false, true] {
+            let (mut x, mut p, mut ll) =
+                (vec![f64::NAN; bs * t * n], vec![f64::NAN; bs * t * n * n], vec![f64::NAN; bs]);
+            let out = BatchOutputs { x_filt: &mut x, p_filt: Some(&mut p), loglik: &mut ll };
+            if ukf {
+                ukf_batch(&model, batch, points, out, threads).unwrap();
+            } else {
+                ekf_batch(&model, batch, options, out, threads).unwrap();
+            }
+            for b in 0..bs {
+                let ys = Series::new("y", &y[b * t * m..(b + 1) * t * m], t, m).unwrap();
+                let (x0b, p0b) = (&x0[b * n..(b + 1) * n], &p0[b * n * n..(b + 1) * n * n]);
+                let one = run(|o| {
+                    if ukf {
+                        ukf_into(&model, ys, None, x0b, p0b, points, o)
+                    } else {
+                        ekf_into(&model, ys, None, x0b, p0b, options, o)
+                    }
+                });
+                assert_eq!(x[b * t * n..(b + 1) * t * n], one.x_filt[..], "x_filt, series {b}");
+                assert_eq!(p[b * t * n * n..(b + 1) * t * n * n], one.p_filt[..], "P_filt, series {b}");
+                assert_eq!(ll[b], one.loglik, "loglik, series {b}");
+            }
+        }
+    }
+    // A bad prior covariance in series 2 is named with its series.
+    let mut bad = p0.clone();
+    bad[2 * n * n] = -1.0;
+    let (mut x, mut ll) = (vec![0.0; bs * t * n], vec![0.0; bs]);
+    let out = BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll };
+    let err = ekf_batch(&model, Batch { p0: &bad, ..batch }, options, out, None).unwrap_err();
+    assert!(err.to_string().contains("(series 2)"), "{err}");
 }

@@ -2,6 +2,7 @@
 //! run-time sizes, validators, allocation-size checks, faer bridging and the real Schur form.
 
 pub(crate) mod alloc;
+pub mod batch;
 pub(crate) mod dense;
 pub(crate) mod dims;
 pub(crate) mod gaussian;

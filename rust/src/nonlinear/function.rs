@@ -20,6 +20,13 @@ pub trait PointFunction: Send + Sync {
     /// `k × dim_out` out). `u` is the input row of step `t`, if the model has inputs.
     fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()>;
 
+    /// Whether calls from several threads run at the same time (`ekf_batch` and `ukf_batch`
+    /// run their series in parallel only then): true but for a Python callable, which holds
+    /// the GIL while it runs.
+    fn parallel(&self) -> bool {
+        true
+    }
+
     /// The Jacobians `∂φ/∂x` at the `k` points (`k × dim_out × n`), when known in closed
     /// form; `None` (the default) means "use central differences" (the filters difference φ
     /// then, all 2n points in one call; docs/algorithms.md, "Extended Kalman filter").

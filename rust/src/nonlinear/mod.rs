@@ -10,9 +10,11 @@
 //! models of [`models`], a [`LinearMap`], or (in the Python extension) a Python callable.
 //! [`NonlinearModel`] validates them with Q and R once; [`ekf_into`] and [`ukf_into`] run a
 //! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs;
+//! [`ekf_batch`] and [`ukf_batch`] run many series at once, in parallel;
 //! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass;
 //! [`NonlinearKalmanFilter`] runs either filter one step at a time.
 
+mod batch;
 mod filter;
 mod function;
 mod model;
@@ -21,6 +23,7 @@ mod sigma;
 mod smoother;
 mod streaming;
 
+pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor};
 pub use function::{wrap_angle, LinearMap, PointFunction};
 pub use model::NonlinearModel;

@@ -87,6 +87,11 @@ impl NonlinearModel {
         self.q.steps().or(self.r.steps())
     }
 
+    /// Whether f and h can run on several threads at once (see [`PointFunction::parallel`]).
+    pub fn parallel(&self) -> bool {
+        self.f.parallel() && self.h.parallel()
+    }
+
     /// The angular outputs.
     pub fn angles(&self) -> &[usize] {
         &self.angles

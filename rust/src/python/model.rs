@@ -361,7 +361,7 @@ pub(super) fn filter_batch<'py>(
         Some(u) => (Some(batch_part("u", u, &[steps, k], bs)?), u.ndim() == 2),
         None => (None, false),
     };
-    let batch = crate::Batch { y: yv, series: bs, steps, u: uv, u_shared, x0: x0v, p0: p0v, form };
+    let batch = crate::Batch { y: yv, series: bs, steps, u: uv, u_shared, x0: x0v, p0: p0v };
     let shared = crate::linear::batch::shares_covariances(&model, &batch);
     let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
     if return_covs {
@@ -375,7 +375,7 @@ pub(super) fn filter_batch<'py>(
         let x_filt = it.next().expect("x_filt");
         let loglik = it.next().expect("loglik");
         let p_filt = it.next().map(|p| &mut **p);
-        crate::filter_batch(&model, batch, crate::BatchOutputs { x_filt, p_filt, loglik }, threads)
+        crate::filter_batch(&model, batch, form, crate::BatchOutputs { x_filt, p_filt, loglik }, threads)
     })?;
     drop(slices);
     let dict = out.into_dict(py)?;
@@ -385,7 +385,7 @@ pub(super) fn filter_batch<'py>(
 
 /// The data of a batch argument of shape `shape` (shared by all series) or `(B, *shape)` (one
 /// per series).
-fn batch_part<'a>(
+pub(super) fn batch_part<'a>(
     arg: &str,
     arr: &'a PyReadonlyArrayDyn<'_, f64>,
     shape: &[usize],

@@ -8,6 +8,7 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
+use super::model::batch_part;
 use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
@@ -97,6 +98,10 @@ fn describe(py: Python<'_>, err: &PyErr) -> String {
 impl PointFunction for PyFunction {
     fn dim_in(&self) -> usize {
         self.dim_in
+    }
+
+    fn parallel(&self) -> bool {
+        false
     }
 
     fn dim_out(&self) -> usize {
@@ -381,6 +386,81 @@ impl PyNonlinearModel {
         self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
             nonlinear::ukf_into(model, y, u, x0, p0, points, out)
         })
+    }
+
+    /// The EKF (`method="ekf"`) or UKF (`"ukf"`, with `points`) of many series at once: a dict
+    /// with x_filt (B, T, n), P_filt (B, T, n, n; absent without covariances) and loglik (B,).
+    #[pyo3(signature = (Y, x0, P0, method, points, u=None, return_covs=true, threads=None, form="joseph", iterations=0, iteration="book", order=1))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn batch<'py>(
+        &self,
+        py: Python<'py>,
+        Y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        method: &str,
+        points: (String, f64, f64, f64),
+        u: Option<Array<'py>>,
+        return_covs: bool,
+        threads: Option<usize>,
+        form: &str,
+        iterations: usize,
+        iteration: &str,
+        order: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let method = match method {
+            "ekf" => SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?),
+            "ukf" => SmoothMethod::Ukf(sigma_points(points)?),
+            other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
+        };
+        let (n, m) = (self.inner.n_states(), self.inner.n_obs());
+        let y = super::data("Y", &Y, 3)?;
+        let (bs, steps) = (Y.shape()[0], Y.shape()[1]);
+        if Y.shape()[2] != m {
+            return Err(KfastError::new_err(format!(
+                "Y: expected shape (B, T, {m}) for m = {m} outputs, got {:?}",
+                Y.shape()
+            )));
+        }
+        let x0 = batch_part("x0", &x0, &[n], bs)?;
+        let p0 = batch_part("P0", &P0, &[n, n], bs)?;
+        let (u, u_shared) = match &u {
+            None => (None, false),
+            Some(u) => {
+                let shape = u.shape();
+                let per_series = shape.len() == 3 && shape[0] == bs && shape[1] == steps;
+                if !(per_series || (shape.len() == 2 && shape[0] == steps)) {
+                    return Err(KfastError::new_err(format!(
+                        "u: expected shape ({steps}, k) (shared) or ({bs}, {steps}, k) (one per series), got {shape:?}"
+                    )));
+                }
+                let values = u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?;
+                (Some(values), !per_series)
+            }
+        };
+        let batch = crate::Batch { y, series: bs, steps, u, u_shared, x0, p0 };
+        let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
+        if return_covs {
+            specs.push(("P_filt", vec![bs, steps, n, n]));
+        }
+        let spec_refs: Vec<(&'static str, &[usize])> = specs.iter().map(|(k, v)| (*k, v.as_slice())).collect();
+        let mut out = OutArrays::new(py, "Y", &spec_refs)?;
+        let mut slices = out.slices()?;
+        let model = &self.inner;
+        py.detach(|| {
+            let mut it = slices.iter_mut();
+            let x_filt = it.next().expect("x_filt");
+            let loglik = it.next().expect("loglik");
+            let p_filt = it.next().map(|p| &mut **p);
+            let out = crate::BatchOutputs { x_filt, p_filt, loglik };
+            match method {
+                SmoothMethod::Ekf(options) => nonlinear::ekf_batch(model, batch, options, out, threads),
+                SmoothMethod::Ukf(points) => nonlinear::ukf_batch(model, batch, points, out, threads),
+            }
+        })?;
+        drop(slices);
+        out.into_dict(py)
     }
 }
 
