@@ -365,7 +365,7 @@ impl GaussianFilter for Ukf {
         square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
         place(weights, &ws.x, factor, sigma);
         evaluate(sensor.h, "h", sigma, k, t, u, images_h)?;
-        unscented_transform(weights, sigma, images_h, sensor.angles, through_h);
+        unscented_transform(weights, sigma, images_h, sensor.angles, true, through_h);
         ws.y_hat.copy_from_slice(&through_h.mean);
         ws.s_full.copy_from_slice(&through_h.cov);
         ws.c_full.copy_from_slice(&through_h.cross);
@@ -392,7 +392,7 @@ impl GaussianFilter for Ukf {
         square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
         place(weights, &ws.x_filt, factor, sigma);
         evaluate(f, "f", sigma, k, t, u, images_f)?;
-        unscented_transform(weights, sigma, images_f, &[], through_f);
+        unscented_transform(weights, sigma, images_f, &[], cross.is_some(), through_f);
         ws.x.copy_from_slice(&through_f.mean);
         ws.p.copy_from_slice(&through_f.cov);
         if let Some(c) = cross {

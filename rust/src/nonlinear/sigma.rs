@@ -109,10 +109,49 @@ impl SigmaPoints {
     }
 }
 
+/// `$body` with `$n` bound to the literal `1..=6` when `$size` is one of them (so that the
+/// `#[inline(always)]` loops it calls are compiled for that size and unrolled), else to `$size`.
+macro_rules! with_small {
+    ($size:expr, |$n:ident| $body:expr) => {
+        match $size {
+            1 => {
+                let $n = 1;
+                $body
+            }
+            2 => {
+                let $n = 2;
+                $body
+            }
+            3 => {
+                let $n = 3;
+                $body
+            }
+            4 => {
+                let $n = 4;
+                $body
+            }
+            5 => {
+                let $n = 5;
+                $body
+            }
+            6 => {
+                let $n = 6;
+                $body
+            }
+            $n => $body,
+        }
+    };
+}
+
 /// The lower Cholesky factor of the symmetric `a[n×n]` into `l` (upper part zero); `Err(j)`
 /// when pivot j is not positive (P not positive definite to working precision).
 pub(crate) fn cholesky(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), usize> {
-    l[..n * n].fill(0.0);
+    with_small!(n, |n| cholesky_sized(&mut l[..n * n], &a[..n * n], n))
+}
+
+#[inline(always)]
+fn cholesky_sized(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), usize> {
+    l.fill(0.0);
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -136,17 +175,22 @@ pub(crate) fn cholesky(l: &mut [f64], a: &[f64], n: usize) -> std::result::Resul
 
 /// The points of (x, P) into `out` (`count × n`), given the lower factor `l` of P.
 pub(crate) fn place(w: &Weights, x: &[f64], l: &[f64], out: &mut [f64]) {
-    let n = x.len();
-    let mut rows = out.chunks_exact_mut(n);
+    with_small!(x.len(), |n| place_sized(w, &x[..n], &l[..n * n], out, n))
+}
+
+#[inline(always)]
+fn place_sized(w: &Weights, x: &[f64], l: &[f64], out: &mut [f64], n: usize) {
+    let first = usize::from(w.centre);
     if w.centre {
-        rows.next().unwrap_or_default().copy_from_slice(x);
+        out[..n].copy_from_slice(x);
     }
-    for sign in [1.0, -1.0] {
+    for (half, sign) in [1.0, -1.0].into_iter().enumerate() {
+        let scale = sign * w.spread;
         for i in 0..n {
-            let row = rows.next().unwrap_or_default();
-            for (j, r) in row.iter_mut().enumerate() {
-                // column i of L, scaled
-                *r = x[j] + sign * w.spread * l[j * n + i];
+            // column i of L, scaled
+            let row = &mut out[(first + half * n + i) * n..][..n];
+            for j in 0..n {
+                row[j] = x[j] + scale * l[j * n + i];
             }
         }
     }
@@ -190,76 +234,220 @@ impl Transformed {
 /// so that a small α (W⁰ₘ ≈ −10⁶ at α = 10⁻³) does not cancel the digits away. Components of
 /// z listed in `angles` are differenced to the centre and wrapped, so their mean is the
 /// circular mean about the centre point (without a centre: about the first point).
-pub(crate) fn unscented_transform(w: &Weights, x_pts: &[f64], z_pts: &[f64], angles: &[usize], out: &mut Transformed) {
+///
+/// `Cov(x, z)` is computed only when `want_cross` (a time update needs it only for a smoother).
+///
+/// The loops run over whole rows (`chunks_exact`), so they carry no index arithmetic or bounds
+/// checks; each entry sums the same products in the same order as the plain loops.
+pub(crate) fn unscented_transform(
+    w: &Weights,
+    x_pts: &[f64],
+    z_pts: &[f64],
+    angles: &[usize],
+    want_cross: bool,
+    out: &mut Transformed,
+) {
+    // Small (n, r) get a copy of the loops compiled for their sizes, unrolled: at run-time
+    // sizes the loop control of these short rows cost more than their arithmetic (CT model,
+    // n = 5: 9,500 instructions a step for the two transforms, by callgrind).
+    macro_rules! sized {
+        ($(($n:literal, $r:literal)),*) => {
+            match (out.e.len(), out.mean.len()) {
+                $(($n, $r) => transform_sized($n, $r, w, x_pts, z_pts, angles, want_cross, out),)*
+                (n, r) => transform_sized(n, r, w, x_pts, z_pts, angles, want_cross, out),
+            }
+        };
+    }
+    sized!(
+        (1, 1),
+        (2, 1),
+        (2, 2),
+        (3, 1),
+        (3, 2),
+        (3, 3),
+        (4, 1),
+        (4, 2),
+        (4, 3),
+        (4, 4),
+        (5, 1),
+        (5, 2),
+        (5, 3),
+        (5, 5),
+        (6, 1),
+        (6, 2),
+        (6, 3),
+        (6, 6)
+    )
+}
+
+/// [`unscented_transform`] for `n` and `r` (constants where inlined into a sized arm).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn transform_sized(
+    n: usize,
+    r: usize,
+    w: &Weights,
+    x_pts: &[f64],
+    z_pts: &[f64],
+    angles: &[usize],
+    want_cross: bool,
+    out: &mut Transformed,
+) {
     use super::function::wrap_angle;
-    let (n, r, k) = (out.e.len(), out.mean.len(), w.mean.len());
+    let k = w.mean.len();
     let Transformed { dev, d, e, mean: z_mean, cov, cross } = out;
+    // Every slice cut to its size and every row taken as `[i * len..][..len]`, so that a sized
+    // arm knows every length and keeps no bounds checks.
+    let (d, e, z_mean) = (&mut d[..r], &mut e[..n], &mut z_mean[..r]);
+    let (cov, cross) = (&mut cov[..r * r], &mut cross[..n * r]);
+    let (x_pts, z_pts, dev) = (&x_pts[..k * n], &z_pts[..k * r], &mut dev[..k * r]);
     let (z0, x0) = (&z_pts[..r], &x_pts[..n]);
     // deviations from the first point (the centre, if any), angles wrapped
     for i in 0..k {
+        let (dev_i, z_i) = (&mut dev[i * r..][..r], &z_pts[i * r..][..r]);
         for c in 0..r {
-            let mut d = z_pts[i * r + c] - z0[c];
-            if angles.contains(&c) {
-                d = wrap_angle(d);
-            }
-            dev[i * r + c] = d;
+            dev_i[c] = z_i[c] - z0[c];
+        }
+        for &a in angles {
+            dev_i[a] = wrap_angle(dev_i[a]);
         }
     }
     let first = usize::from(w.centre);
     d.fill(0.0);
     e.fill(0.0);
     for i in first..k {
+        let (wi, dev_i, x_i) = (w.mean[i], &dev[i * r..][..r], &x_pts[i * n..][..n]);
         for c in 0..r {
-            d[c] += w.mean[i] * dev[i * r + c];
+            d[c] += wi * dev_i[c];
         }
-        for c in 0..n {
-            e[c] += w.mean[i] * (x_pts[i * n + c] - x0[c]);
+        if want_cross {
+            for c in 0..n {
+                e[c] += wi * (x_i[c] - x0[c]);
+            }
         }
     }
     if !w.centre {
         // plain sums about the mean, all weights positive: shift the deviations to the mean
         for i in 0..k {
+            let dev_i = &mut dev[i * r..][..r];
             for c in 0..r {
-                dev[i * r + c] -= d[c];
+                dev_i[c] -= d[c];
             }
+        }
+        // and take the x deviations below from the mean x0 + e (kept in e)
+        for c in 0..n {
+            e[c] += x0[c];
         }
     }
     for c in 0..r {
         z_mean[c] = z0[c] + d[c];
     }
-    cov[..r * r].fill(0.0);
-    cross[..n * r].fill(0.0);
+    cov.fill(0.0);
+    cross.fill(0.0);
+    let x_ref: &[f64] = if w.centre { x0 } else { e };
     for i in first..k {
-        let wi = w.mean[i];
-        let di = &dev[i * r..(i + 1) * r];
-        for a in 0..r {
-            for b in a..r {
-                cov[a * r + b] += wi * di[a] * di[b];
-            }
-        }
-        for a in 0..n {
-            let ea = x_pts[i * n + a] - if w.centre { x0[a] } else { x0[a] + e[a] };
-            for b in 0..r {
-                cross[a * r + b] += wi * ea * di[b];
+        let (wi, dev_i, x_i) = (w.mean[i], &dev[i * r..][..r], &x_pts[i * n..][..n]);
+        add_outer_upper(cov, r, wi, dev_i);
+        if want_cross {
+            for a in 0..n {
+                let s = wi * (x_i[a] - x_ref[a]);
+                let row = &mut cross[a * r..][..r];
+                for b in 0..r {
+                    row[b] += s * dev_i[b];
+                }
             }
         }
     }
     if w.centre {
         let g = w.centre_excess - 1.0;
-        for a in 0..r {
-            for b in a..r {
-                cov[a * r + b] += g * d[a] * d[b];
-            }
-        }
-        for a in 0..n {
-            for b in 0..r {
-                cross[a * r + b] += g * e[a] * d[b];
+        add_outer_upper(cov, r, g, d);
+        if want_cross {
+            for a in 0..n {
+                let s = g * e[a];
+                let row = &mut cross[a * r..][..r];
+                for b in 0..r {
+                    row[b] += s * d[b];
+                }
             }
         }
     }
     for a in 0..r {
         for b in 0..a {
             cov[a * r + b] = cov[b * r + a];
+        }
+    }
+}
+
+/// `cov += w v v'` on and above the diagonal (`cov` is r × r, `v` an r-vector).
+#[inline(always)]
+fn add_outer_upper(cov: &mut [f64], r: usize, w: f64, v: &[f64]) {
+    for a in 0..r {
+        let s = w * v[a];
+        let row = &mut cov[a * r..][..r];
+        for b in a..r {
+            row[b] += s * v[b];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Numbers in (−2, 2), reproducible.
+    fn numbers(seed: u64, len: usize) -> Vec<f64> {
+        let mut s = seed;
+        (0..len)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+            })
+            .collect()
+    }
+
+    /// The loops compiled for small sizes give the bits of the run-time-size loops, for every
+    /// kind of point set (with a centre or not) and with angles (in an optimized build the sized
+    /// arms are unrolled copies; the Python tests run those against the NumPy reference).
+    #[test]
+    fn sized_loops_give_the_bits_of_run_time_sizes() {
+        let sets = [
+            SigmaPoints::Merwe { alpha: 0.5, beta: 2.0, kappa: 0.0 },
+            SigmaPoints::Julier { kappa: 1.0 },
+            SigmaPoints::Cubature,
+        ];
+        for (n, r) in [(1, 1), (3, 2), (5, 2), (5, 5), (6, 3)] {
+            for points in sets {
+                let w = points.weights(n);
+                let k = w.mean.len();
+                let x = numbers(n as u64, n);
+                let a = numbers(7 + n as u64, n * n);
+                // a positive definite P = A A' + I
+                let mut p = vec![0.0; n * n];
+                for i in 0..n {
+                    for j in 0..n {
+                        p[i * n + j] = (0..n).map(|l| a[i * n + l] * a[j * n + l]).sum::<f64>() + f64::from(i == j);
+                    }
+                }
+                let (mut l, mut l_dyn) = (vec![0.0; n * n], vec![0.0; n * n]);
+                cholesky(&mut l, &p, n).unwrap();
+                cholesky_sized(&mut l_dyn, &p, std::hint::black_box(n)).unwrap();
+                assert_eq!(l, l_dyn);
+                let (mut pts, mut pts_dyn) = (vec![0.0; k * n], vec![0.0; k * n]);
+                place(&w, &x, &l, &mut pts);
+                place_sized(&w, &x, &l, &mut pts_dyn, std::hint::black_box(n));
+                assert_eq!(pts, pts_dyn);
+                let z: Vec<f64> = numbers(3, k * r).iter().zip(pts.iter().cycle()).map(|(e, x)| x * x + e).collect();
+                let angles: &[usize] = if r > 1 { &[1] } else { &[] };
+                let (mut out, mut out_dyn) = (Transformed::new(k, n, r), Transformed::new(k, n, r));
+                unscented_transform(&w, &pts, &z, angles, true, &mut out);
+                let (nd, rd) = (std::hint::black_box(n), std::hint::black_box(r));
+                transform_sized(nd, rd, &w, &pts, &z, angles, true, &mut out_dyn);
+                assert_eq!(
+                    (&out.mean, &out.cov, &out.cross),
+                    (&out_dyn.mean, &out_dyn.cov, &out_dyn.cross),
+                    "({n}, {r})"
+                );
+            }
         }
     }
 }
