@@ -168,6 +168,7 @@ class NonlinearModel:
         jac_h: Optional[Any] = None,
         hess_f: Optional[Any] = None,
         hess_h: Optional[Any] = None,
+        g: Optional[Any] = None,
     ) -> None: ...
     def ekf(
         self,

@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use kfast::nonlinear::LinearMap;
+use kfast::nonlinear::{ConstantMap, LinearMap};
 use kfast::{
     ekf_batch, ekf_into, filter, ukf_batch, ukf_into, Batch, BatchOutputs, EkfOptions, Error, FilterOutputs,
     FilterResult, Iteration, LinearGaussian, Matrices, NonlinearModel, Series, SigmaPoints, StepMatrix, UpdateForm,
@@ -190,4 +190,53 @@ fn the_batch_filters_give_each_series_its_own_filter() {
     let out = BatchOutputs { x_filt: &mut x, p_filt: None, loglik: &mut ll };
     let err = ekf_batch(&model, Batch { p0: &bad, ..batch }, options, out, None).unwrap_err();
     assert!(err.to_string().contains("(series 2)"), "{err}");
+}
+
+/// A constant noise gain G (3 × 2) with Q of size 2 × 2 is the model with Q replaced by G Q G';
+/// a gain of the wrong size is refused, naming g.
+#[test]
+fn a_constant_noise_gain_is_the_model_with_g_q_g_transposed() {
+    let g = [1.0, 0.0, 0.5, 1.0, 0.0, 2.0];
+    let q_w = [0.4, 0.1, 0.1, 0.3];
+    // G Q G' by hand
+    let mut gqg = [0.0; 9];
+    for i in 0..3 {
+        for j in 0..3 {
+            gqg[i * 3 + j] = (0..2)
+                .flat_map(|a| (0..2).map(move |b| (a, b)))
+                .map(|(a, b)| g[i * 2 + a] * q_w[a * 2 + b] * g[j * 2 + b])
+                .sum();
+        }
+    }
+    let f = || Arc::new(LinearMap::new(F.to_vec(), 3, 3).unwrap());
+    let h = || Arc::new(LinearMap::new(H.to_vec(), 2, 3).unwrap());
+    let with_gain = NonlinearModel::with_noise_gain(
+        f(),
+        Arc::new(ConstantMap::new(g.to_vec(), 3)),
+        h(),
+        mat(2, 2, &q_w),
+        mat(2, 2, &R),
+        vec![],
+    )
+    .unwrap();
+    let folded = NonlinearModel::new(f(), h(), mat(3, 3, &gqg), mat(2, 2, &R), vec![]).unwrap();
+    let y = data();
+    let ys = Series::new("y", &y, 30, 2).unwrap();
+    let points = SigmaPoints::Cubature;
+    let a = run(|o| ukf_into(&with_gain, ys, None, &X0, &P0, points, o));
+    let b = run(|o| ukf_into(&folded, ys, None, &X0, &P0, points, o));
+    for (x, z) in a.p_pred.iter().zip(&b.p_pred) {
+        assert!((x - z).abs() <= 1e-12 * z.abs().max(1.0), "{x} vs {z}");
+    }
+    assert!((a.loglik - b.loglik).abs() <= 1e-12 * b.loglik.abs());
+    let err = NonlinearModel::with_noise_gain(
+        f(),
+        Arc::new(ConstantMap::new(g[..4].to_vec(), 3)),
+        h(),
+        mat(2, 2, &q_w),
+        mat(2, 2, &R),
+        vec![],
+    )
+    .unwrap_err();
+    assert!(err.to_string().starts_with("g:"), "{err}");
 }

@@ -66,7 +66,7 @@ class NonlinearModel:
         const double *u, double *out)`` with X the k points (k x n, row-major), u the input row
         (NULL without inputs) and out the k results (k x n for f, k x m for h). A signature that
         does not match is refused; the function itself is trusted (it must not write past out).
-    Q : array_like, shape (n, n) or (T, n, n)
+    Q : array_like, shape (n, n) or (T, n, n); (r, r) or (T, r, r) with ``g``
         Process noise covariance (Q[t] takes x[t] to x[t+1]); may be singular, even 0.
     R : array_like, shape (m, m) or (T, m, m)
         Measurement noise covariance; m is taken from it.
@@ -84,6 +84,11 @@ class NonlinearModel:
         The components of y that are angles (radians): their innovations, differences and
         sigma-point deviations are wrapped to [-pi, pi), so a bearing crossing +-pi does not
         jump by 2 pi. A built-in h brings its own (e.g. the bearing of ``range_bearing``).
+    g : callable or array_like, shape (n, r), optional
+        A noise gain: x[t+1] = f(x[t], t, u[t]) + g(x[t], t, u[t]) w[t] with w ~ N(0, Q), Q of
+        shape (r, r). A constant G (an array), a Python function batched like f returning
+        (k, n, r), or a compiled function of ``C_SIGNATURE`` writing k x n*r numbers. The filters
+        add G Q G' with G = g(x(t|t), t, u[t]), the gain at the estimate where f is linearized.
 
     Examples
     --------
@@ -110,11 +115,14 @@ class NonlinearModel:
         angles: Sequence[int] = (),
         hess_f: Optional[Callable[..., ArrayLike]] = None,
         hess_h: Optional[Callable[..., ArrayLike]] = None,
+        g: Union[PointFunction, ArrayLike, None] = None,
     ) -> None:
         self.n_states: int = index("n", n)
         if self.n_states == 0:
             raise _kfast.KfastError("n: must be at least 1")
         self.Q: np.ndarray = frozen_copy("Q", Q, scalar_shape=(1, 1))
+        if self.Q.ndim not in (2, 3):
+            raise _kfast.KfastError(f"Q: expected shape (r, r) or (T, r, r), got {self.Q.shape}")
         self.R: np.ndarray = frozen_copy("R", R, scalar_shape=(1, 1))
         if self.R.ndim not in (2, 3):
             raise _kfast.KfastError(f"R: expected shape (m, m) or (T, m, m), got {self.R.shape}")
@@ -130,9 +138,11 @@ class NonlinearModel:
             if given is not None and isinstance(fn, BuiltinFunction):
                 raise _kfast.KfastError(f"{name}: the built-in {name[-1]} has its own {what}")
         self.f, self.h = f, h
+        self.g: Union[PointFunction, np.ndarray, None] = _noise_gain(g, self.n_states, self.Q.shape[-1])
         self._core = _kfast.NonlinearModel(
             _spec("f", f), _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles),
             jac_f=jac_f, jac_h=jac_h, hess_f=hess_f, hess_h=hess_h,
+            g=None if self.g is None else ("constant", self.g) if isinstance(self.g, np.ndarray) else _spec("g", self.g),
         )
 
     @classmethod
@@ -352,6 +362,20 @@ def _spec(name: str, fn: Any) -> Any:
     if not callable(fn):
         raise _kfast.KfastError(f"{name}: expected a callable {name}(X, t, u) or a kfast.models built-in, got {type(fn).__name__}")
     return fn
+
+
+def _noise_gain(g: Any, n: int, r: int) -> Any:
+    """A callable or compiled g as given; a constant G as a read-only (n, r) array."""
+    if g is None or callable(g) or _is_compiled(g):
+        return g
+    G = frozen_copy("g", g)
+    if G.shape != (n, r):
+        raise _kfast.KfastError(f"g: a constant noise gain must have shape (n, r) = ({n}, {r}) for Q of shape ({r}, {r}), got {G.shape}")
+    return G
+
+
+def _is_compiled(fn: Any) -> bool:
+    return type(fn).__name__ == "LowLevelCallable" or hasattr(fn, "address")
 
 
 def _angles(angles: Sequence[int], m: int) -> tuple[int, ...]:

@@ -2,16 +2,16 @@
 
 Model (kfast notation; Söderström ch. 9 writes R1, R2 for Q, R)::
 
-    x[t+1] = f(x[t], t, u[t]) + g(x[t]) w[t]      cov w = Q    (g defaults to I)
+    x[t+1] = f(x[t], t, u[t]) + g(x[t], t, u[t]) w[t]   cov w = Q  (g defaults to I)
     y[t]   = h(x[t], t, u[t]) + v[t]              cov v = R
 
 The prior (x0, P0) is x(0|-1), P(0|-1): each step is a measurement update, then a time update.
 ``f`` and ``h`` are *batched* callables, as kfast takes them: ``f(X, t, u)`` maps the points X of
 shape (k, n) to (k, n), ``h(X, t, u)`` to (k, m); ``u`` is u[t] or None. Jacobians are batched the
 same way: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n); Hessians ``hess_f`` ->
-(k, n, n, n) (one n x n Hessian per output component), ``hess_h`` -> (k, m, n, n). ``g(X)``
--> (k, n, r) for Q of size r x r. Missing values (NaN) in y: the update uses the observed
-components only; a step with nothing observed skips it. ``angles`` lists the components of y
+(k, n, n, n) (one n x n Hessian per output component), ``hess_h`` -> (k, m, n, n). ``g(X, t, u)``
+-> (k, n, r) for Q of size r x r, evaluated at x(t|t). Missing values (NaN) in y: the update uses
+the observed components only; a step with nothing observed skips it. ``angles`` lists the components of y
 that are angles: their innovations (and sigma-point deviations) are wrapped to [-pi, pi).
 
 Every function returns a dict with the fields of ``kfast.FilterResult`` (x_pred, P_pred, x_filt,
@@ -53,11 +53,11 @@ def _one(fn, x, t, u):
     return np.asarray(fn(x[None, :], t, u), dtype=float)[0]
 
 
-def _noise_cov(g, Q, x, n):
-    """G Q G' with G = g(x) (I without g)."""
+def _noise_cov(g, Q, x, n, t, u):
+    """G Q G' with G = g(x, t, u) (I without g), the gain at x(t|t)."""
     if g is None:
         return Q
-    G = np.asarray(g(x[None, :]), dtype=float)[0].reshape(n, -1)
+    G = np.asarray(g(x[None, :], t, u), dtype=float)[0].reshape(n, -1)
     return G @ Q @ G.T
 
 
@@ -246,7 +246,7 @@ def ekf(
         if order == 2:
             # f_bar_k = 1/2 tr(P(t|t) hess f_k), with P(t|t) already computed          (9.22)
             x = x + 0.5 * np.einsum("ij,kji->k", P_filt, hess(f, hess_f, x_filt, t, ut))
-        P = F @ P_filt @ F.T + _noise_cov(g, _at(Q, t), x_filt, n)
+        P = F @ P_filt @ F.T + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
         P = (P + P.T) / 2
     out["loglik"] = float(out["loglik_t"].sum())
     out["x_next"], out["P_next"] = x, P
@@ -374,7 +374,7 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
         x, P, D = _unscented_moments(Xf, propagated, Wm, Wc)
         # D = Cov(x(t), x(t+1)): the unscented smoother's cross-covariance (Särkkä 2008)
         out["D"][t] = D
-        P = P + _noise_cov(g, _at(Q, t), x_filt, n)
+        P = P + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
         P = (P + P.T) / 2
     out["loglik"] = float(out["loglik_t"].sum())
     out["x_next"], out["P_next"] = x, P

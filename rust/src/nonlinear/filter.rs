@@ -15,7 +15,7 @@
 //! filter's measurement buffers again when a sensor with another m comes).
 
 use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angle, Differences, PointFunction};
-use super::model::NonlinearModel;
+use super::model::{NoiseScratch, NonlinearModel};
 use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed, Weights};
 use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::Dyn;
@@ -134,6 +134,7 @@ fn run(
     out.check_sizes(steps, n, model.n_obs())?;
     out.refuse_gain_pred(filter.name())?;
     let mut total = LoglikSum::default();
+    let mut noise = NoiseScratch::default();
     for t in 0..steps {
         let (y_t, u_t) = (y.row(t), u.map(|u| u.row(t)));
         out.store_prior(t, &filter.state().x, &filter.state().p);
@@ -141,7 +142,8 @@ fn run(
         total.add(&filter.state().gauss);
         filter.state().store(&mut out, t);
         let cross_t = cross.as_deref_mut().map(|c| &mut c[t * n * n..(t + 1) * n * n]);
-        filter.predict(model.f(), model.q_at(t), t, u_t, cross_t)?;
+        let q = model.process_noise(t, filter.state().current(true).0, u_t, &mut noise)?;
+        filter.predict(model.f(), q, t, u_t, cross_t)?;
     }
     out.store_next(&filter.state().x, &filter.state().p);
     Ok(total.total())

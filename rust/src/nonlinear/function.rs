@@ -96,6 +96,37 @@ impl PointFunction for LinearMap {
     }
 }
 
+/// `x ↦ c` for a constant `c` of `dim_out` numbers (e.g. a constant noise gain G, n × r).
+#[derive(Debug, Clone)]
+pub struct ConstantMap {
+    values: Vec<f64>,
+    dim_in: usize,
+}
+
+impl ConstantMap {
+    /// The map from `dim_in` states to `values`.
+    pub fn new(values: Vec<f64>, dim_in: usize) -> Self {
+        ConstantMap { values, dim_in }
+    }
+}
+
+impl PointFunction for ConstantMap {
+    fn dim_in(&self) -> usize {
+        self.dim_in
+    }
+
+    fn dim_out(&self) -> usize {
+        self.values.len()
+    }
+
+    fn eval(&self, _points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        for block in out.chunks_exact_mut(self.values.len().max(1)).take(k) {
+            block.copy_from_slice(&self.values);
+        }
+        Ok(())
+    }
+}
+
 /// Scratch for [`jacobian_by_differences`]: the 2n difference points and their images.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Differences {

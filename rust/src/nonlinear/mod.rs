@@ -25,7 +25,7 @@ mod streaming;
 
 pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor};
-pub use function::{wrap_angle, LinearMap, PointFunction};
+pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use model::NonlinearModel;
 pub use sigma::SigmaPoints;
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};

@@ -4,6 +4,8 @@ use std::sync::Arc;
 
 use super::filter::Sensor;
 use super::function::PointFunction;
+use crate::core::dense::{mul, mul_bt_sym};
+use crate::core::dims::Dyn;
 use crate::core::validate::{check_input_row, check_observations, check_prior, check_psd, check_symmetric};
 use crate::core::Series;
 use crate::error::{Error, Result};
@@ -16,6 +18,11 @@ use crate::linear::model::StepMatrix;
 /// y[t]   = h(x[t], t, u[t]) + v[t]     v ~ N(0, R[t])
 /// ```
 ///
+/// or, with a noise gain g ([`with_noise_gain`](Self::with_noise_gain)),
+/// `x[t+1] = f(x[t], t, u[t]) + g(x[t], t, u[t]) w[t]` with g(x) n × r and Q r × r: the filters
+/// then add `G Q G'` with G = g(x̂(t|t)), the gain at the estimate (Söderström (9.2)–(9.11)
+/// with G(t) evaluated where f is linearized).
+///
 /// Q and R are constant or given per step as in [`LinearGaussian`](crate::LinearGaussian)
 /// (`Q[t]` takes `x[t]` to `x[t+1]`, `R[t]` goes with `y[t]`); a singular Q (even 0) is allowed.
 /// `angles` lists the components of y that are angles: innovations and sigma-point deviations
@@ -24,6 +31,7 @@ use crate::linear::model::StepMatrix;
 pub struct NonlinearModel {
     f: Arc<dyn PointFunction>,
     h: Arc<dyn PointFunction>,
+    g: Option<Arc<dyn PointFunction>>,
     q: StepMatrix,
     r: StepMatrix,
     angles: Vec<usize>,
@@ -46,6 +54,30 @@ impl NonlinearModel {
         r: StepMatrix,
         angles: Vec<usize>,
     ) -> Result<Self> {
+        Self::validated(f, None, h, q, r, angles)
+    }
+
+    /// [`new`](Self::new) with the noise gain `g`, whose `dim_out` is n·r (G row-major, n × r)
+    /// for the r × r `q`.
+    pub fn with_noise_gain(
+        f: Arc<dyn PointFunction>,
+        g: Arc<dyn PointFunction>,
+        h: Arc<dyn PointFunction>,
+        q: StepMatrix,
+        r: StepMatrix,
+        angles: Vec<usize>,
+    ) -> Result<Self> {
+        Self::validated(f, Some(g), h, q, r, angles)
+    }
+
+    fn validated(
+        f: Arc<dyn PointFunction>,
+        g: Option<Arc<dyn PointFunction>>,
+        h: Arc<dyn PointFunction>,
+        q: StepMatrix,
+        r: StepMatrix,
+        angles: Vec<usize>,
+    ) -> Result<Self> {
         let n = f.dim_in();
         if f.dim_out() != n {
             return Err(Error::arg("f", format!("maps {n} states to {} numbers, not to {n}", f.dim_out())));
@@ -54,7 +86,23 @@ impl NonlinearModel {
             return Err(Error::arg("h", format!("takes {} states, but f takes n = {n}", h.dim_in())));
         }
         let m = h.dim_out();
-        check_covariance("Q", &q, n)?;
+        let noise_dim = match &g {
+            None => n,
+            Some(g) => {
+                let r = q.rows();
+                if g.dim_in() != n {
+                    return Err(Error::arg("g", format!("takes {} states, but f takes n = {n}", g.dim_in())));
+                }
+                if g.dim_out() != n * r {
+                    return Err(Error::arg(
+                        "g",
+                        format!("gives {} numbers, expected n × r = {n} × {r} for Q of shape ({r}, {r})", g.dim_out()),
+                    ));
+                }
+                r
+            }
+        };
+        check_covariance("Q", &q, noise_dim)?;
         check_covariance("R", &r, m)?;
         if let (Some(a), Some(b)) = (q.steps(), r.steps()) {
             if a != b {
@@ -69,7 +117,7 @@ impl NonlinearModel {
                 return Err(Error::arg("angles", format!("index {a} is listed twice")));
             }
         }
-        Ok(NonlinearModel { f, h, q, r, angles })
+        Ok(NonlinearModel { f, h, g, q, r, angles })
     }
 
     /// The state size n.
@@ -87,9 +135,9 @@ impl NonlinearModel {
         self.q.steps().or(self.r.steps())
     }
 
-    /// Whether f and h can run on several threads at once (see [`PointFunction::parallel`]).
+    /// Whether f, h and g can run on several threads at once (see [`PointFunction::parallel`]).
     pub fn parallel(&self) -> bool {
-        self.f.parallel() && self.h.parallel()
+        self.f.parallel() && self.h.parallel() && self.g.as_ref().is_none_or(|g| g.parallel())
     }
 
     /// The angular outputs.
@@ -106,8 +154,34 @@ impl NonlinearModel {
         Sensor { h: &*self.h, r: self.r.at(t), angles: &self.angles }
     }
 
-    pub(crate) fn q_at(&self, t: usize) -> &[f64] {
-        self.q.at(t)
+    /// The noise covariance the time update from x̂(t|t) = `x` adds: Q(t), or G Q(t) G' with
+    /// G = g(x, t, u) (into `scratch`; g's output checked finite, an error names g and t).
+    pub(crate) fn process_noise<'a>(
+        &'a self,
+        t: usize,
+        x: &[f64],
+        u: Option<&[f64]>,
+        scratch: &'a mut NoiseScratch,
+    ) -> Result<&'a [f64]> {
+        let q = self.q.at(t);
+        let Some(g) = &self.g else { return Ok(q) };
+        let (n, r) = (self.n_states(), self.q.rows());
+        scratch.gain.resize(n * r, 0.0);
+        scratch.gq.resize(n * r, 0.0);
+        scratch.noise.resize(n * n, 0.0);
+        g.eval(x, 1, t, u, &mut scratch.gain)?;
+        if let Some(v) = scratch.gain.iter().find(|v| !v.is_finite()) {
+            return Err(Error::arg_at("g", t, format!("returned a non-finite value ({v})")));
+        }
+        // G Q G', one triangle mirrored: exactly symmetric
+        mul::<Dyn>(&mut scratch.gq, &scratch.gain, q, n, r, r);
+        mul_bt_sym::<Dyn>(&mut scratch.noise, &scratch.gq, &scratch.gain, n, r);
+        Ok(&scratch.noise)
+    }
+
+    /// Whether the model has a noise gain g.
+    pub fn has_noise_gain(&self) -> bool {
+        self.g.is_some()
     }
 
     /// Validates data, inputs and prior for a run; returns T.
@@ -140,4 +214,12 @@ fn check_covariance(arg: &'static str, mat: &StepMatrix, size: usize) -> Result<
         check_psd(a, size).map_err(|p| Error::arg(arg, p).at_step(step))?;
     }
     Ok(())
+}
+
+/// Scratch of [`NonlinearModel::process_noise`]: G, G Q and G Q G'.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct NoiseScratch {
+    gain: Vec<f64>,
+    gq: Vec<f64>,
+    noise: Vec<f64>,
 }

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use super::filter::{Ekf, EkfOptions, GaussianFilter, Sensor, Ukf};
-use super::model::NonlinearModel;
+use super::model::{NoiseScratch, NonlinearModel};
 use super::sigma::SigmaPoints;
 use crate::core::validate::{check_input_row, check_observation, check_prior, check_psd, check_symmetric};
 use crate::error::{Error, Result};
@@ -20,6 +20,7 @@ pub struct NonlinearKalmanFilter {
     /// Whether the state is x̂(t|t) (an update was the last operation).
     filtered: bool,
     loglik: f64,
+    noise: NoiseScratch,
 }
 
 impl NonlinearKalmanFilter {
@@ -38,7 +39,7 @@ impl NonlinearKalmanFilter {
     }
 
     fn of(model: Arc<NonlinearModel>, filter: Box<dyn GaussianFilter>) -> Self {
-        NonlinearKalmanFilter { model, filter, t: 0, filtered: false, loglik: 0.0 }
+        NonlinearKalmanFilter { model, filter, t: 0, filtered: false, loglik: 0.0, noise: NoiseScratch::default() }
     }
 
     /// The state size n.
@@ -135,7 +136,8 @@ impl NonlinearKalmanFilter {
             self.filter.state_mut().carry(false);
         }
         let model = Arc::clone(&self.model);
-        self.filter.predict(model.f(), model.q_at(t), t, u, None)?;
+        let q = model.process_noise(t, self.filter.state().current(true).0, u, &mut self.noise)?;
+        self.filter.predict(model.f(), q, t, u, None)?;
         self.t += 1;
         self.filtered = false;
         Ok(())

@@ -13,7 +13,7 @@ use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutA
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
 use crate::nonlinear::models::{Bearing, CoordinatedTurn, RangeBearing, RangeBearingElevation, Ungm};
-use crate::nonlinear::{self, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod};
+use crate::nonlinear::{self, ConstantMap, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod};
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 
@@ -27,6 +27,8 @@ struct PyFunction {
     hess: Option<Py<PyAny>>,
     dim_in: usize,
     dim_out: usize,
+    /// The shape of one point's result (`[dim_out]`, or `[n, r]` for a noise gain).
+    shape: Vec<usize>,
 }
 
 impl PyFunction {
@@ -109,7 +111,7 @@ impl PointFunction for PyFunction {
     }
 
     fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        self.call(&self.fun, "it", points, k, t, u, &[self.dim_out], out)
+        self.call(&self.fun, "it", points, k, t, u, &self.shape, out)
     }
 
     fn jacobian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
@@ -168,8 +170,9 @@ fn point_function(
     spec: &Bound<'_, PyAny>,
     (jac, hess): (Option<&Bound<'_, PyAny>>, Option<&Bound<'_, PyAny>>),
     n: usize,
-    dim_out: usize,
+    shape: &[usize],
 ) -> PyResult<Arc<dyn PointFunction>> {
+    let dim_out = shape.iter().product();
     if let Ok(tuple) = spec.cast::<PyTuple>() {
         let kind: String = tuple.get_item(0)?.extract()?;
         let params = tuple.get_item(1)?;
@@ -198,6 +201,12 @@ fn point_function(
                 // Python, kfast.nonlinear.model._compiled).
                 let fun: CFn = unsafe { std::mem::transmute::<usize, CFn>(address) };
                 Arc::new(CFunction { name, fun, dim_in: n, dim_out })
+            }
+            "constant" => {
+                let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
+                let values =
+                    a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))?;
+                Arc::new(ConstantMap::new(values.to_vec(), n))
             }
             "linear" => {
                 let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
@@ -228,6 +237,7 @@ fn point_function(
         hess: unbind(hess),
         dim_in: n,
         dim_out,
+        shape: shape.to_vec(),
     }))
 }
 
@@ -277,7 +287,7 @@ pub(super) struct PyNonlinearModel {
 #[pymethods]
 impl PyNonlinearModel {
     #[new]
-    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None, hess_f=None, hess_h=None))]
+    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None, hess_f=None, hess_h=None, g=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -292,10 +302,18 @@ impl PyNonlinearModel {
         jac_h: Option<&Bound<'_, PyAny>>,
         hess_f: Option<&Bound<'_, PyAny>>,
         hess_h: Option<&Bound<'_, PyAny>>,
+        g: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let f = point_function("f", f, (jac_f, hess_f), n, n)?;
-        let h = point_function("h", h, (jac_h, hess_h), n, m)?;
-        let inner = nonlinear::NonlinearModel::new(f, h, step_matrix("Q", &Q)?, step_matrix("R", &R)?, angles)?;
+        let f = point_function("f", f, (jac_f, hess_f), n, &[n])?;
+        let h = point_function("h", h, (jac_h, hess_h), n, &[m])?;
+        let (q, r) = (step_matrix("Q", &Q)?, step_matrix("R", &R)?);
+        let inner = match g {
+            None => nonlinear::NonlinearModel::new(f, h, q, r, angles)?,
+            Some(g) => {
+                let g = point_function("g", g, (None, None), n, &[n, q.rows()])?;
+                nonlinear::NonlinearModel::with_noise_gain(f, g, h, q, r, angles)?
+            }
+        };
         Ok(PyNonlinearModel { shared: Arc::new(inner.clone()), inner })
     }
 
@@ -558,7 +576,7 @@ impl PyNonlinearKalmanFilter {
             (Some(h), Some(r)) => {
                 let m = r.shape().first().copied().unwrap_or(0);
                 let r = super::data("R", &r, 2)?;
-                let h = point_function("h", h, (None, None), inner.n_states(), m)?;
+                let h = point_function("h", h, (None, None), inner.n_states(), &[m])?;
                 let angles = angles.unwrap_or_default();
                 let sensor = nonlinear::Sensor { h: &*h, r, angles: &angles };
                 Ok(py.detach(|| inner.update_with(sensor, y, u))?)
