@@ -47,18 +47,20 @@ pub(crate) fn for_sizes<D: Dims>(d: D) -> Option<Avx2Fma> {
 
 /// Whether the three-state kernels are faster than the portable loops on this CPU, which is
 /// a matter of measurement (docs/decisions.md, "Three- and four-state steps on AVX2
-/// registers"): on an AMD Zen 3 they are 4–6% faster, and without them W8's (4, 3) ran 13%
-/// below (3, 3); on an Intel Xeon (Sapphire Rapids, AVX-512) they are 10–40% slower at
-/// m = 1, 2, 3, and (3, 1) ran 15% above (4, 1). So AMD CPUs use them and others do not.
-/// Read once per process.
+/// registers"): on an AMD Zen 3 (AVX2, no AVX-512) they are 4–6% faster, and without them
+/// W8's (4, 3) ran 13% below (3, 3); on an Intel Xeon (Sapphire Rapids) they are 10–40% slower
+/// at m = 1, 2, 3, and (3, 1) ran 15% above (4, 1); on an AMD Zen 4 (2026-12-05) (3, 1) ran 16%
+/// above (4, 1) with them. Both slower CPUs have AVX-512, so AMD CPUs without AVX-512 use
+/// them and others do not. Read once per process.
 #[inline(always)]
 fn three_states_pay() -> bool {
-    static AMD: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *AMD.get_or_init(|| {
+    static PAYS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *PAYS.get_or_init(|| {
         // CPUID leaf 0: the vendor string in EBX, EDX, ECX.
         let id = __cpuid(0);
-        [id.ebx, id.edx, id.ecx]
-            == [u32::from_le_bytes(*b"Auth"), u32::from_le_bytes(*b"enti"), u32::from_le_bytes(*b"cAMD")]
+        let amd = [id.ebx, id.edx, id.ecx]
+            == [u32::from_le_bytes(*b"Auth"), u32::from_le_bytes(*b"enti"), u32::from_le_bytes(*b"cAMD")];
+        amd && !std::arch::is_x86_feature_detected!("avx512f")
     })
 }
 

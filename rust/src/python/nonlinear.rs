@@ -253,6 +253,19 @@ fn ekf_options(form: &str, iterations: usize, iteration: &str, order: usize) -> 
     })
 }
 
+/// The filter `method` ("ekf" with its options, or "ukf" with its points).
+fn parse_method(
+    method: &str,
+    points: (String, f64, f64, f64),
+    (form, iterations, iteration, order): (&str, usize, &str, usize),
+) -> PyResult<SmoothMethod> {
+    match method {
+        "ekf" => Ok(SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?)),
+        "ukf" => Ok(SmoothMethod::Ukf(sigma_points(points)?)),
+        other => Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
+    }
+}
+
 fn parse_iteration(iteration: &str) -> PyResult<Iteration> {
     match iteration {
         "book" => Ok(Iteration::Book),
@@ -359,11 +372,7 @@ impl PyNonlinearModel {
         iteration: &str,
         order: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let method = match method {
-            "ekf" => SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?),
-            "ukf" => SmoothMethod::Ukf(sigma_points(points)?),
-            other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
-        };
+        let method = parse_method(method, points, (form, iterations, iteration, order))?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, m, steps) = (self.inner.n_states(), self.inner.n_obs(), y.steps());
@@ -427,11 +436,7 @@ impl PyNonlinearModel {
         iteration: &str,
         order: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let method = match method {
-            "ekf" => SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?),
-            "ukf" => SmoothMethod::Ukf(sigma_points(points)?),
-            other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
-        };
+        let method = parse_method(method, points, (form, iterations, iteration, order))?;
         let (n, m) = (self.inner.n_states(), self.inner.n_obs());
         let y = super::data("Y", &Y, 3)?;
         let (bs, steps) = (Y.shape()[0], Y.shape()[1]);
