@@ -849,9 +849,11 @@ _AR_RECURSION_LIMIT = 100_000
 # ----------------------------------------------------------------------------------------------
 
 
-def coordinated_turn(dt, q=1.0, sigma_omega=0.0) -> BuiltinFunction:
+def coordinated_turn(dt, q=1.0, sigma_omega=0.0, omega=None) -> BuiltinFunction:
     """The coordinated turn with unknown turn rate, state (px, py, vx, vy, omega), as the
-    transition f of a :class:`kfast.NonlinearModel` (n = 5), computed in Rust.
+    transition f of a :class:`kfast.NonlinearModel` (n = 5), computed in Rust -- or, with a
+    known turn rate ``omega`` (rad per unit time), the 4-state turn (px, py, vx, vy), a linear
+    map x' = F(omega) x with the same F entries (n = 4; ``sigma_omega`` does not apply).
 
     The exact discretization for a constant turn rate omega over ``dt`` (Bar-Shalom, Li &
     Kirubarajan 2001; Li & Jilkov 2003)::
@@ -869,17 +871,36 @@ def coordinated_turn(dt, q=1.0, sigma_omega=0.0) -> BuiltinFunction:
     >>> ct = kfast.models.coordinated_turn(dt=0.1, q=1.0, sigma_omega=0.05)
     >>> ct.Q.shape
     (5, 5)
+    >>> known = kfast.models.coordinated_turn(dt=0.1, q=1.0, omega=0.2)
+    >>> known.params.shape, known.Q.shape
+    ((4, 4), (4, 4))
     """
     h = _positive("dt", dt)
     q = _nonneg("q", q)
     s2 = _nonneg("sigma_omega", sigma_omega) ** 2
-    Q = np.zeros((5, 5))
+    n = 5 if omega is None else 4
+    Q = np.zeros((n, n))
     per_axis = q * np.array([[h**3 / 3, h**2 / 2], [h**2 / 2, h]])
     for axis in (0, 1):
         Q[np.ix_([axis, axis + 2], [axis, axis + 2])] = per_axis
-    Q[4, 4] = s2 * h
+    if omega is None:
+        Q[4, 4] = s2 * h
+        Q.setflags(write=False)
+        return BuiltinFunction("coordinated_turn", (h,), Q=Q)
     Q.setflags(write=False)
-    return BuiltinFunction("coordinated_turn", (h,), Q=Q)
+    return BuiltinFunction("linear", _known_turn(h, _real("omega", omega)), Q=Q)
+
+
+def _known_turn(dt: float, omega: float) -> np.ndarray:
+    """F of the turn by a known omega over dt, through sinc (no cancellation as omega -> 0):
+    s = dt sinc(omega dt), c = (omega dt^2 / 2) sinc^2(omega dt / 2)."""
+    a = omega * dt
+    s = dt * np.sinc(a / np.pi)  # NumPy's sinc is sin(pi x) / (pi x)
+    c = omega * dt * dt / 2 * np.sinc(a / 2 / np.pi) ** 2
+    C, S = np.cos(a), np.sin(a)
+    F = np.array([[1.0, 0.0, s, -c], [0.0, 1.0, c, s], [0.0, 0.0, C, -S], [0.0, 0.0, S, C]])
+    F.setflags(write=False)
+    return F
 
 
 def range_bearing(sensor=(0.0, 0.0)) -> BuiltinFunction:

@@ -1,8 +1,10 @@
 """The built-in nonlinear models (Rust) against the same models written as NumPy callables:
-bearings-only, the 3-D radar with constant-velocity dynamics from the linear catalogue, UNGM."""
+bearings-only, the 3-D radar with constant-velocity dynamics from the linear catalogue, UNGM,
+and the coordinated turn with a known turn rate."""
 
 import numpy as np
 import pytest
+from tracking import DT, ct_one, ct_problem
 
 import kfast
 
@@ -97,3 +99,43 @@ def test_a_linear_model_with_inputs_is_refused_as_f():
     m = kfast.LinearGaussian(np.eye(2), np.eye(2), np.eye(2), np.eye(2), B=np.ones((2, 1)))
     with pytest.raises(kfast.KfastError, match="f: a LinearGaussian used as f"):
         kfast.NonlinearModel(m, kfast.models.range_bearing(), np.eye(2), np.eye(2), n=2)
+
+
+# ----------------------------------------------------------------------------------------------
+# Coordinated turn with a known turn rate (a linear map of the 4-state (px, py, vx, vy))
+# ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("omega", [0.7, -0.3, 1e-3, 1e-9, 0.0])
+def test_known_turn_rate_is_the_turn_of_the_five_state_model(omega):
+    known = kfast.models.coordinated_turn(DT, q=2.0, omega=omega)
+    F = known.params
+    assert known.kind == "linear" and F.shape == (4, 4) and not F.flags.writeable
+    x = np.array([3.0, -1.0, 5.0, -2.0])
+    if omega == 0.0:
+        cv = np.array([[1, 0, DT, 0], [0, 1, 0, DT], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+        np.testing.assert_array_equal(F, cv)
+    else:
+        # the NumPy form sin(w dt)/w, (1 - cos(w dt))/w cancels for tiny w: compare loosely there
+        tol = 1e-13 if abs(omega) > 1e-2 else 1e-6
+        np.testing.assert_allclose(F @ x, ct_one(np.append(x, omega))[:4], rtol=tol, atol=tol)
+    np.testing.assert_allclose(known.Q, kfast.models.coordinated_turn(DT, q=2.0).Q[:4, :4], rtol=0, atol=0)
+
+
+def test_known_turn_rate_filters_as_the_five_state_model_with_omega_fixed():
+    """The EKF of the 5-state CT with omega known exactly (no variance, no noise on it) is the
+    Kalman filter of the 4-state known-omega turn."""
+    _, R, y, x0, P0 = ct_problem(T=30)
+    omega = x0[4]
+    radar = kfast.models.range_bearing((0.0, 0.0))
+    P5 = P0.copy()
+    P5[4, 4] = 0.0
+    five = kfast.NonlinearModel(kfast.models.coordinated_turn(DT, q=1.0), radar, kfast.models.coordinated_turn(DT, q=1.0).Q, R, n=5)
+    known = kfast.models.coordinated_turn(DT, q=1.0, omega=omega)
+    four = kfast.NonlinearModel(known, radar, known.Q, R, n=4)
+    a, b = five.ekf(y, x0, P5), four.ekf(y, x0[:4], P0[:4, :4])
+    np.testing.assert_allclose(a.x_filt[:, :4], b.x_filt, rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(a.P_filt[:, :4, :4], b.P_filt, rtol=1e-10, atol=1e-9)
+    assert a.loglik == pytest.approx(b.loglik, rel=1e-11)
+    with pytest.raises(kfast.KfastError, match="omega: must be finite"):
+        kfast.models.coordinated_turn(DT, omega=np.inf)
