@@ -23,6 +23,7 @@ MODULES = [
     "kfast._kfast",
     "kfast.linear.batch",
     "kfast.nonlinear.batch",
+    "kfast.sigma",
     "kfast.linear.estimation",
     "kfast.sampling",
     "kfast.riccati.solvers",

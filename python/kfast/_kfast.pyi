@@ -25,6 +25,10 @@ class InnovationCovarianceError(KfastError):
 class NoStabilizingSolutionError(KfastError):
     """A Riccati equation has no stabilizing solution."""
 
+
+PointsSpec = tuple[str, float, float, float, Optional[NDArray[np.float64]], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
+"""kfast.sigma.SigmaPoints._spec(): kind, alpha, beta, kappa and a custom set's unit points, Wm, Wc."""
+
 def solve_discrete_lyapunov(a: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def solve_continuous_lyapunov(a: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def stationary_covariance(F: NDArray[np.float64], Q: NDArray[np.float64]) -> NDArray[np.float64]: ...
@@ -188,7 +192,7 @@ class NonlinearModel:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         outputs: list[str],
-        points: tuple[str, float, float, float],
+        points: PointsSpec,
         u: Optional[NDArray[np.float64]] = None,
     ) -> dict[str, Any]: ...
     def smooth(
@@ -197,7 +201,7 @@ class NonlinearModel:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         method: str,
-        points: tuple[str, float, float, float],
+        points: PointsSpec,
         u: Optional[NDArray[np.float64]] = None,
         form: Form = "joseph",
         iterations: int = 0,
@@ -210,7 +214,7 @@ class NonlinearModel:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         method: str,
-        points: tuple[str, float, float, float],
+        points: PointsSpec,
         u: Optional[NDArray[np.float64]] = None,
         return_covs: bool = True,
         threads: Optional[int] = None,
@@ -230,7 +234,7 @@ class NonlinearKalmanFilter:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         method: str,
-        points: tuple[str, float, float, float],
+        points: PointsSpec,
         form: Form = "joseph",
         iterations: int = 0,
         iteration: Iteration = "book",

@@ -407,3 +407,72 @@ def test_a_compiled_callable_with_another_signature_is_refused(c_library):
     for bad in (wrong, returns, scipy.LowLevelCallable(wrong)):
         with pytest.raises(kfast.KfastError, match="f: the .*signature .* is not"):
             kfast.NonlinearModel(bad, range_bearing, Q, R, n=5)
+
+
+# ----------------------------------------------------------------------------------------------
+# Custom sigma-point sets (kfast.sigma.custom)
+# ----------------------------------------------------------------------------------------------
+
+
+def merwe_written_out(n, alpha, beta=2.0, kappa=0.0):
+    lam = alpha**2 * (n + kappa) - n
+    c = np.sqrt(n + lam)
+    unit = np.concatenate([np.zeros((1, n)), c * np.eye(n), -c * np.eye(n)])
+    Wm = np.full(2 * n + 1, 1 / (2 * (n + lam)))
+    Wc = Wm.copy()
+    Wm[0] = lam / (n + lam)
+    Wc[0] = Wm[0] + 1 - alpha**2 + beta
+    return unit, Wm, Wc
+
+
+def test_custom_points_written_as_merwe_and_cubature_equal_the_built_in_sets():
+    builtin, python, Q, R, y, x0, P0 = ct_models()
+    unit, Wm, Wc = merwe_written_out(5, 0.5)
+    cub = np.sqrt(5) * np.concatenate([np.eye(5), -np.eye(5)])
+    for model in (builtin, python):
+        for mine, theirs in (
+            (kfast.sigma.custom(unit, Wm, Wc), kfast.sigma.merwe(0.5)),
+            (kfast.sigma.custom(cub, np.full(10, 0.1)), kfast.sigma.cubature()),
+        ):
+            a, b = model.ukf(y, x0, P0, points=mine), model.ukf(y, x0, P0, points=theirs)
+            # the built-in centred sums and the plain sums differ by rounding only
+            assert_close(a, {k: getattr(b, k) for k in FIELDS + ("loglik",)}, rtol=1e-9, atol=1e-9)
+            s_mine = model.smooth(y, x0, P0, method="ukf", points=mine)
+            s_theirs = model.smooth(y, x0, P0, method="ukf", points=theirs)
+            np.testing.assert_allclose(s_mine.P_smooth, s_theirs.P_smooth, rtol=1e-9, atol=1e-9)
+
+
+def test_a_custom_set_with_its_own_weights_equals_the_reference():
+    """A set unlike the built-ins: Merwe's points along randomly rotated axes (so L xi_i mixes
+    every column of L), with its unequal centre weights, in the filter, the streaming filter and
+    ukf_batch."""
+    _, _, Q, R, y, x0, P0 = ct_models()
+    rotation, _ = np.linalg.qr(np.random.default_rng(4).normal(size=(5, 5)))
+    unit, Wm, Wc = merwe_written_out(5, 0.7)
+    unit = unit @ rotation.T
+    points = kfast.sigma.custom(unit, Wm, Wc)
+    model = kfast.NonlinearModel(ct, range_bearing, Q, R, n=5, angles=[1])
+    got = model.ukf(y, x0, P0, points=points)
+    want = ref.ukf(ct, range_bearing, Q, R, y, x0, P0, points=ref.CustomPoints(unit, Wm, Wc), angles=[1])
+    assert_close(got, want, rtol=1e-10, atol=1e-10)
+    stream = kfast.UnscentedKalmanFilter(model, x0, P0, points=points)
+    stream.update(y[0])
+    np.testing.assert_allclose(stream.P, got.P_filt[0], rtol=1e-13, atol=1e-13)
+    bank = kfast.ukf_batch(model, np.stack([y, y]), x0, P0, points=points)
+    np.testing.assert_array_equal(bank.x_filt[1], got.x_filt)
+
+
+def test_bad_custom_sets_are_named():
+    builtin, _, Q, R, y, x0, P0 = ct_models()
+    with pytest.raises(kfast.KfastError, match=r"Wm: expected one weight per point, shape \(3,\)"):
+        kfast.sigma.custom(np.eye(3), [0.5, 0.5])
+    with pytest.raises(kfast.KfastError, match=r"points: expected unit points of shape \(k, n\)"):
+        kfast.sigma.custom([1.0, 2.0], [0.5, 0.5])
+    with pytest.raises(kfast.KfastError, match=r"points: the mean weights must sum to 1"):
+        builtin.ukf(y, x0, P0, points=kfast.sigma.custom(np.eye(5), np.full(5, 0.3)))
+    with pytest.raises(kfast.KfastError, match=r"points: the set is for n = 3 states, the model has n = 5"):
+        builtin.ukf(y, x0, P0, points=kfast.sigma.custom(np.eye(3), np.full(3, 1 / 3)))
+    with pytest.raises(kfast.KfastError, match=r"points: points and weights must be finite"):
+        builtin.ukf(y, x0, P0, points=kfast.sigma.custom(np.full((2, 5), np.nan), [0.5, 0.5]))
+    with pytest.raises(kfast.KfastError, match=r"unit points go with kind 'custom' only"):
+        kfast.sigma.SigmaPoints("merwe", unit=np.eye(2))

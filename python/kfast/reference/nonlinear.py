@@ -306,7 +306,23 @@ def cubature():
     return SigmaPoints("cubature")
 
 
-def _unscented_moments(X, Z, Wm, Wc, angles=()):
+class CustomPoints:
+    """A user's set: unit points xi (k x n) placed at x + L xi_i, weights Wm, Wc; no centre."""
+
+    centred = False
+
+    def __init__(self, unit, Wm, Wc=None):
+        self.unit, self.Wm = np.asarray(unit, dtype=float), np.asarray(Wm, dtype=float)
+        self.Wc = self.Wm if Wc is None else np.asarray(Wc, dtype=float)
+
+    def weights(self, n):
+        return 1.0, self.Wm, self.Wc
+
+    def points(self, x, P):
+        return x + self.unit @ np.linalg.cholesky(P).T
+
+
+def _unscented_moments(X, Z, Wm, Wc, angles=(), centred=None):
     """The unscented transform of the points X -> Z: the mean of Z, Cov(Z) and Cov(X, Z).
 
     Sets with a centre point (len(Wm) odd) use the centred form: with D_i = Z_i - Z_0,
@@ -317,7 +333,9 @@ def _unscented_moments(X, Z, Wm, Wc, angles=()):
     Angular components of Z are differenced to the centre (wrapped), so their mean is the
     circular mean about it. Without a centre, the plain sums (angles relative to the first point).
     """
-    if len(Wm) % 2 == 0:  # no centre point: all weights positive
+    if centred is None:
+        centred = len(Wm) % 2 == 1
+    if not centred:  # no centre point (or a custom set): the plain sums
         Z = Z.copy()
         for k in angles:
             Z[:, k] = Z[0, k] + wrap(Z[:, k] - Z[0, k])
@@ -356,7 +374,7 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
         out["x_pred"][t], out["P_pred"][t] = x, P
         X = points.points(x, P)
         Y = np.asarray(h(X, t, ut), dtype=float)
-        y_hat, S_full, C_full = _unscented_moments(X, Y, Wm, Wc, angles)
+        y_hat, S_full, C_full = _unscented_moments(X, Y, Wm, Wc, angles, getattr(points, "centred", None))
         S_full = S_full + Rt
         e_full = _wrap_components(y[t] - y_hat, angles)
         out["innov"][t], out["S"][t] = e_full, S_full
@@ -371,7 +389,7 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
         out["x_filt"][t], out["P_filt"][t] = x_filt, P_filt
         Xf = points.points(x_filt, P_filt)
         propagated = np.asarray(f(Xf, t, ut), dtype=float)
-        x, P, D = _unscented_moments(Xf, propagated, Wm, Wc)
+        x, P, D = _unscented_moments(Xf, propagated, Wm, Wc, centred=getattr(points, "centred", None))
         # D = Cov(x(t), x(t+1)): the unscented smoother's cross-covariance (Särkkä 2008)
         out["D"][t] = D
         P = P + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)

@@ -40,7 +40,7 @@ pub fn ukf_batch(
     out: BatchOutputs<'_>,
     threads: Option<usize>,
 ) -> Result<()> {
-    run_batch(model, batch, out, threads, |y, u, x0, p0, o| ukf_into(model, y, u, x0, p0, points, o))
+    run_batch(model, batch, out, threads, |y, u, x0, p0, o| ukf_into(model, y, u, x0, p0, points.clone(), o))
 }
 
 fn run_batch(

@@ -27,6 +27,6 @@ pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor};
 pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use model::NonlinearModel;
-pub use sigma::SigmaPoints;
+pub use sigma::{CustomPoints, SigmaPoints};
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};
 pub use streaming::NonlinearKalmanFilter;

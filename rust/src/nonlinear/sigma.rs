@@ -1,6 +1,8 @@
 //! Sigma-point sets and the unscented transform (Julier & Uhlmann 1997; Julier 2002; Wan & van
 //! der Merwe 2000; Arasaratnam & Haykin 2009).
 
+use std::sync::Arc;
+
 use crate::error::{Error, Result};
 
 /// A sigma-point set: where the points of a Gaussian (x̂, P) sit and how they are weighted.
@@ -13,7 +15,8 @@ use crate::error::{Error, Result};
 /// | [`Merwe`](Self::Merwe) (α, β, κ) | √(n + λ), λ = α²(n + κ) − n | W⁰ₘ = λ/(n+λ), W⁰꜀ = W⁰ₘ + 1 − α² + β, Wᵢ = 1/2(n+λ) |
 /// | [`Julier`](Self::Julier) (κ) | √(n + κ) | W⁰ = κ/(n+κ), Wᵢ = 1/2(n+κ) |
 /// | [`Cubature`](Self::Cubature) | √n | no centre, Wᵢ = 1/2n |
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// | [`Custom`](Self::Custom) | the user's unit points ξᵢ: Xᵢ = x̂ + L ξᵢ | the user's Wₘ, W꜀ |
+#[derive(Debug, Clone, PartialEq)]
 pub enum SigmaPoints {
     /// Scaled points (Julier 2002; Wan & van der Merwe 2000).
     Merwe {
@@ -31,6 +34,46 @@ pub enum SigmaPoints {
     },
     /// Third-degree spherical-radial cubature (Arasaratnam & Haykin 2009).
     Cubature,
+    /// A set of the user's for one state size ([`CustomPoints`]).
+    Custom(Arc<CustomPoints>),
+}
+
+/// A user's sigma-point set for state size n: unit points ξᵢ (k × n), placed at
+/// `Xᵢ = x̂ + L ξᵢ` with L the lower Cholesky factor of P, mean weights Wₘ (summing to 1) and
+/// covariance weights W꜀. The unscented transform takes the plain sums about the mean
+/// (`z̄ = Σ Wₘᵢ Zᵢ`, `Cov = Σ W꜀ᵢ (Zᵢ − z̄)(Zᵢ − z̄)'`), angles relative to the first point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CustomPoints {
+    n: usize,
+    unit: Vec<f64>,
+    mean: Vec<f64>,
+    cov: Vec<f64>,
+}
+
+impl CustomPoints {
+    /// Checks the set: `unit` is k × n (k ≥ 1) and finite, `mean` and `cov` have k finite
+    /// weights, and the mean weights sum to 1 (to 1e-9 of their absolute sum).
+    pub fn new(unit: Vec<f64>, n: usize, mean: Vec<f64>, cov: Vec<f64>) -> Result<Self> {
+        let k = mean.len();
+        let bad = |problem: String| Err(Error::arg("points", problem));
+        if n == 0 || k == 0 || unit.len() != k * n {
+            return bad(format!(
+                "expected k >= 1 unit points of n = {n} numbers and k weights, got {} numbers and {k} weights",
+                unit.len()
+            ));
+        }
+        if cov.len() != k {
+            return bad(format!("expected {k} covariance weights (one per point), got {}", cov.len()));
+        }
+        if let Some(v) = unit.iter().chain(&mean).chain(&cov).find(|v| !v.is_finite()) {
+            return bad(format!("points and weights must be finite, got {v}"));
+        }
+        let (sum, size) = mean.iter().fold((0.0, 0.0), |(s, a), w| (s + w, a + w.abs()));
+        if (sum - 1.0).abs() > 1e-9 * size.max(1.0) {
+            return bad(format!("the mean weights must sum to 1, got {sum}"));
+        }
+        Ok(CustomPoints { n, unit, mean, cov })
+    }
 }
 
 /// The numbers of a set for a dimension n: the spread c and the weights.
@@ -42,6 +85,9 @@ pub(crate) struct Weights {
     pub centre: bool,
     /// Mean weights, one per point.
     pub mean: Vec<f64>,
+    /// A custom set's unit points (k × n) and covariance weights; `None` for the built-in sets.
+    pub unit: Option<Vec<f64>>,
+    pub cov: Option<Vec<f64>>,
     /// `W⁰꜀ − W⁰ₘ` (0 without a centre): the covariance weights are the mean weights but for
     /// the centre's.
     pub centre_excess: f64,
@@ -79,6 +125,14 @@ impl SigmaPoints {
                 }
             }
             SigmaPoints::Cubature => {}
+            SigmaPoints::Custom(ref p) => {
+                if p.n != n {
+                    return Err(Error::arg(
+                        "points",
+                        format!("the set is for n = {} states, the model has n = {n}", p.n),
+                    ));
+                }
+            }
         }
         Ok(())
     }
@@ -87,25 +141,31 @@ impl SigmaPoints {
     pub fn count(&self, n: usize) -> usize {
         match self {
             SigmaPoints::Cubature => 2 * n,
+            SigmaPoints::Custom(p) => p.mean.len(),
             _ => 2 * n + 1,
         }
     }
 
     pub(crate) fn weights(&self, n: usize) -> Weights {
         let nf = n as f64;
-        let (spread2, w0m, excess) = match *self {
-            SigmaPoints::Merwe { alpha, beta, kappa } => {
+        let (spread2, w0m, excess) = match self {
+            &SigmaPoints::Merwe { alpha, beta, kappa } => {
                 let lambda = alpha * alpha * (nf + kappa) - nf;
                 (nf + lambda, lambda / (nf + lambda), 1.0 - alpha * alpha + beta)
             }
-            SigmaPoints::Julier { kappa } => (nf + kappa, kappa / (nf + kappa), 0.0),
+            &SigmaPoints::Julier { kappa } => (nf + kappa, kappa / (nf + kappa), 0.0),
             SigmaPoints::Cubature => {
-                return Weights { spread: nf.sqrt(), centre: false, mean: vec![0.5 / nf; 2 * n], centre_excess: 0.0 };
+                let mean = vec![0.5 / nf; 2 * n];
+                return Weights { spread: nf.sqrt(), centre: false, mean, centre_excess: 0.0, unit: None, cov: None };
+            }
+            SigmaPoints::Custom(p) => {
+                let (unit, cov) = (Some(p.unit.clone()), Some(p.cov.clone()));
+                return Weights { spread: 1.0, centre: false, mean: p.mean.clone(), centre_excess: 0.0, unit, cov };
             }
         };
         let mut mean = vec![0.5 / spread2; 2 * n + 1];
         mean[0] = w0m;
-        Weights { spread: spread2.sqrt(), centre: true, mean, centre_excess: excess }
+        Weights { spread: spread2.sqrt(), centre: true, mean, centre_excess: excess, unit: None, cov: None }
     }
 }
 
@@ -180,6 +240,19 @@ pub(crate) fn place(w: &Weights, x: &[f64], l: &[f64], out: &mut [f64]) {
 
 #[inline(always)]
 fn place_sized(w: &Weights, x: &[f64], l: &[f64], out: &mut [f64], n: usize) {
+    if let Some(unit) = &w.unit {
+        // X_i = x + L ξ_i (L lower triangular)
+        for (row, xi) in out.chunks_exact_mut(n).zip(unit.chunks_exact(n)) {
+            for j in 0..n {
+                let mut v = x[j];
+                for c in 0..=j {
+                    v += l[j * n + c] * xi[c];
+                }
+                row[j] = v;
+            }
+        }
+        return;
+    }
     let first = usize::from(w.centre);
     if w.centre {
         out[..n].copy_from_slice(x);
@@ -345,8 +418,11 @@ fn transform_sized(
     cov.fill(0.0);
     cross.fill(0.0);
     let x_ref: &[f64] = if w.centre { x0 } else { e };
+    // the covariance weights: a custom set's own, else the mean weights (the centre's excess
+    // is added below)
+    let cov_weights = w.cov.as_deref().unwrap_or(&w.mean);
     for i in first..k {
-        let (wi, dev_i, x_i) = (w.mean[i], &dev[i * r..][..r], &x_pts[i * n..][..n]);
+        let (wi, dev_i, x_i) = (cov_weights[i], &dev[i * r..][..r], &x_pts[i * n..][..n]);
         add_outer_upper(cov, r, wi, dev_i);
         if want_cross {
             for a in 0..n {
@@ -416,7 +492,7 @@ mod tests {
             SigmaPoints::Cubature,
         ];
         for (n, r) in [(1, 1), (3, 2), (5, 2), (5, 5), (6, 3)] {
-            for points in sets {
+            for points in sets.clone() {
                 let w = points.weights(n);
                 let k = w.mean.len();
                 let x = numbers(n as u64, n);

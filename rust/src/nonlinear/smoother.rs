@@ -20,7 +20,7 @@ use crate::linear::filter::FilterOutputs;
 use crate::linear::smoother::SmoothOutputs;
 
 /// Which filter the smoother runs forward.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub enum SmoothMethod {
     /// The EKF (extended RTS).
     Ekf(EkfOptions),

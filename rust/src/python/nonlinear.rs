@@ -13,7 +13,9 @@ use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutA
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
 use crate::nonlinear::models::{Bearing, CoordinatedTurn, RangeBearing, RangeBearingElevation, Ungm};
-use crate::nonlinear::{self, ConstantMap, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod};
+use crate::nonlinear::{
+    self, ConstantMap, CustomPoints, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod,
+};
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 
@@ -256,7 +258,7 @@ fn ekf_options(form: &str, iterations: usize, iteration: &str, order: usize) -> 
 /// The filter `method` ("ekf" with its options, or "ukf" with its points).
 fn parse_method(
     method: &str,
-    points: (String, f64, f64, f64),
+    points: PointsSpec<'_>,
     (form, iterations, iteration, order): (&str, usize, &str, usize),
 ) -> PyResult<SmoothMethod> {
     match method {
@@ -274,12 +276,25 @@ fn parse_iteration(iteration: &str) -> PyResult<Iteration> {
     }
 }
 
-/// The sigma points `(kind, alpha, beta, kappa)` of `kfast.sigma.SigmaPoints._spec()`.
-fn sigma_points((kind, alpha, beta, kappa): (String, f64, f64, f64)) -> PyResult<SigmaPoints> {
+/// `kfast.sigma.SigmaPoints._spec()`: `(kind, alpha, beta, kappa, unit, Wm, Wc)`, the three
+/// arrays given for a custom set only (unit points (k, n), weights (k,)).
+type PointsSpec<'py> = (String, f64, f64, f64, Option<Array<'py>>, Option<Array<'py>>, Option<Array<'py>>);
+
+/// The sigma points of a [`PointsSpec`].
+fn sigma_points((kind, alpha, beta, kappa, unit, wm, wc): PointsSpec<'_>) -> PyResult<SigmaPoints> {
+    let values = |arg: &str, a: &Option<Array<'_>>| -> PyResult<Vec<f64>> {
+        let a = a.as_ref().ok_or_else(|| KfastError::new_err(format!("points: a custom set needs {arg}")))?;
+        Ok(a.as_slice().map_err(|_| KfastError::new_err(format!("points: {arg} is not contiguous")))?.to_vec())
+    };
     match kind.as_str() {
         "merwe" => Ok(SigmaPoints::Merwe { alpha, beta, kappa }),
         "julier" => Ok(SigmaPoints::Julier { kappa }),
         "cubature" => Ok(SigmaPoints::Cubature),
+        "custom" => {
+            let n = unit.as_ref().filter(|u| u.ndim() == 2).map_or(0, |u| u.shape()[1]);
+            let set = CustomPoints::new(values("points", &unit)?, n, values("Wm", &wm)?, values("Wc", &wc)?)?;
+            Ok(SigmaPoints::Custom(Arc::new(set)))
+        }
         other => Err(KfastError::new_err(format!("points: unknown sigma-point set {other:?}"))),
     }
 }
@@ -365,7 +380,7 @@ impl PyNonlinearModel {
         x0: Array<'py>,
         P0: Array<'py>,
         method: &str,
-        points: (String, f64, f64, f64),
+        points: PointsSpec<'py>,
         u: Option<Array<'py>>,
         form: &str,
         iterations: usize,
@@ -406,12 +421,12 @@ impl PyNonlinearModel {
         x0: Array<'py>,
         P0: Array<'py>,
         outputs: Vec<String>,
-        points: (String, f64, f64, f64),
+        points: PointsSpec<'py>,
         u: Option<Array<'py>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let points = sigma_points(points)?;
         self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
-            nonlinear::ukf_into(model, y, u, x0, p0, points, out)
+            nonlinear::ukf_into(model, y, u, x0, p0, points.clone(), out)
         })
     }
 
@@ -427,7 +442,7 @@ impl PyNonlinearModel {
         x0: Array<'py>,
         P0: Array<'py>,
         method: &str,
-        points: (String, f64, f64, f64),
+        points: PointsSpec<'py>,
         u: Option<Array<'py>>,
         return_covs: bool,
         threads: Option<usize>,
@@ -543,7 +558,7 @@ impl PyNonlinearKalmanFilter {
         x0: Array<'_>,
         P0: Array<'_>,
         method: &str,
-        points: (String, f64, f64, f64),
+        points: PointsSpec<'_>,
         form: &str,
         iterations: usize,
         iteration: &str,
