@@ -29,8 +29,9 @@
 //! - [`smooth`] → [`SmootherResult`] (RTS with lag-one covariances; [`smooth_into`] stores
 //!   only the outputs asked for), [`smooth_fixed_lag`] ([`FixedLagOptions`]) and
 //!   the online [`FixedLagSmoother`], [`smooth_fixed_point`].
-//! - [`filter_batch`]: many series through one model on all cores (feature `rayon`, on by
-//!   default), the covariance recursion computed once when it is shared.
+//! - [`filter_batch`]: many series ([`Batch`] → [`BatchOutputs`]) through one model on all
+//!   cores (feature `rayon`, on by default), the covariance recursion computed once when it is
+//!   shared.
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
 //! - [`solve_discrete_are`] / [`solve_continuous_are`] of a [`RiccatiProblem`] →
@@ -40,7 +41,8 @@
 //!   continuous-time models.
 //! - [`NonlinearModel`] of f and h given as [`PointFunction`]s (built-ins in
 //!   [`nonlinear::models`]), [`ekf_into`] (EKF, iterated: [`EkfOptions`]) and [`ukf_into`]
-//!   (UKF with [`SigmaPoints`]): the nonlinear Gaussian filters.
+//!   (UKF with [`SigmaPoints`]): the nonlinear Gaussian filters; a noise gain g through
+//!   [`NonlinearModel::with_noise_gain`]; [`ekf_batch`] / [`ukf_batch`] for many tracks.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
