@@ -100,26 +100,33 @@ def filter_batch(
     """
     if not isinstance(model, LinearGaussian):
         raise _kfast.KfastError(f"model: expected a kfast.LinearGaussian, got {type(model).__name__}")
-    Y = as_float64("Y", Y)
-    if Y.ndim == 2 and model.n_obs == 1:
-        Y = Y[:, :, None]
-    if Y.ndim != 3:
-        raise _kfast.KfastError(f"Y: expected a 3-D array (B, T, m), got shape {Y.shape}")
-    n = model.n_states
-    x0 = as_float64("x0", x0)
-    P0 = as_float64("P0", P0)
-    if n == 1:  # scalars for a scalar state, as in LinearGaussian.filter
-        x0 = x0.reshape(1) if x0.ndim == 0 else x0
-        P0 = P0.reshape(1, 1) if P0.ndim == 0 else P0
-    if u is not None:  # the shapes of x0, P0 and u are checked by the core
-        u = as_float64("u", u)
-    if threads is not None:
-        if index("threads", threads) < 1:
-            raise _kfast.KfastError(f"threads: must be >= 1, got {threads!r}")
-        threads = min(int(threads), Y.shape[0])  # never more threads than series (nor cores)
+    Y, x0, P0, u, threads = batch_arguments(model.n_states, model.n_obs, Y, x0, P0, u, threads)
     return_covs = flag("return_covs", return_covs)
     out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_form(form))
     P = out.get("P_filt")
     if P is not None and out["shared"]:
         P = np.broadcast_to(P, (Y.shape[0],) + P.shape)
     return BatchResult(x_filt=out["x_filt"], P_filt=P, loglik=out["loglik"], shared_covariance=bool(out["shared"]))
+
+
+def batch_arguments(
+    n: int, m: int, Y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike], threads: Optional[int]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Optional[np.ndarray], Optional[int]]:
+    """The arguments of a batch filter as float64 arrays: Y as (B, T, m) (also (B, T) when
+    m = 1), scalars x0 and P0 for a scalar state, and ``threads`` checked (>= 1) and capped at
+    the number of series; the shapes of x0, P0 and u are checked by the core."""
+    Y_arr = as_float64("Y", Y)
+    if Y_arr.ndim == 2 and m == 1:
+        Y_arr = Y_arr[:, :, None]
+    if Y_arr.ndim != 3:
+        raise _kfast.KfastError(f"Y: expected a 3-D array (B, T, m), got shape {Y_arr.shape}")
+    x, P = as_float64("x0", x0), as_float64("P0", P0)
+    if n == 1:  # scalars for a scalar state, as in the single-series filters
+        x = x.reshape(1) if x.ndim == 0 else x
+        P = P.reshape(1, 1) if P.ndim == 0 else P
+    u_arr = None if u is None else as_float64("u", u)
+    if threads is not None:
+        if index("threads", threads) < 1:
+            raise _kfast.KfastError(f"threads: must be >= 1, got {threads!r}")
+        threads = min(int(threads), max(Y_arr.shape[0], 1))  # never more threads than series (nor cores)
+    return Y_arr, x, P, u_arr, threads

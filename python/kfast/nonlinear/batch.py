@@ -4,14 +4,12 @@ from __future__ import annotations
 
 from typing import Optional, cast
 
-import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._args import choice, flag, index
-from kfast._arrays import as_float64
 from kfast._typing import Form, Iteration
-from kfast.linear.batch import BatchResult
+from kfast.linear.batch import BatchResult, batch_arguments
 from kfast.nonlinear.model import NonlinearModel
 from kfast.sigma import SigmaPoints
 
@@ -133,20 +131,7 @@ def _run(
 ) -> BatchResult:
     if not isinstance(model, NonlinearModel):
         raise _kfast.KfastError(f"model: expected a kfast.NonlinearModel, got {type(model).__name__}")
-    Y_arr = as_float64("Y", Y)
-    if Y_arr.ndim == 2 and model.n_obs == 1:
-        Y_arr = Y_arr[:, :, None]
-    if Y_arr.ndim != 3:
-        raise _kfast.KfastError(f"Y: expected a 3-D array (B, T, m), got shape {Y_arr.shape}")
-    x, P = as_float64("x0", x0), as_float64("P0", P0)
-    if model.n_states == 1:  # scalars for a scalar state, as in NonlinearModel.ekf
-        x = x.reshape(1) if x.ndim == 0 else x
-        P = P.reshape(1, 1) if P.ndim == 0 else P
-    u_arr = None if u is None else as_float64("u", u)
-    if threads is not None:
-        if index("threads", threads) < 1:
-            raise _kfast.KfastError(f"threads: must be >= 1, got {threads!r}")
-        threads = min(int(threads), max(Y_arr.shape[0], 1))
+    Y_arr, x, P, u_arr, threads = batch_arguments(model.n_states, model.n_obs, Y, x0, P0, u, threads)
     spec = model._points(points)._spec()
     out = model._core.batch(
         Y_arr, x, P, method, spec, u=u_arr, return_covs=flag("return_covs", return_covs), threads=threads,

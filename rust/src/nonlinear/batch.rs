@@ -12,7 +12,7 @@ use super::sigma::SigmaPoints;
 use crate::core::batch::par::{self, *};
 use crate::core::batch::{prefix_series, thread_count, Batch, BatchOutputs, SeriesSizes};
 use crate::core::Series;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::linear::filter::FilterOutputs;
 
 /// The extended Kalman filter ([`ekf_into`] with `options`) of every series of `batch`, in
@@ -78,16 +78,11 @@ fn run_batch(
 fn check_batch(model: &NonlinearModel, b: &Batch<'_>, out: &BatchOutputs<'_>) -> Result<SeriesSizes> {
     let (n, m) = (model.n_states(), model.n_obs());
     let rows = if b.u_shared { b.steps } else { b.series.saturating_mul(b.steps) };
+    // the input width from u's length (one that is not rows × k fails check_lengths)
     let k = match b.u {
         Some(u) if rows > 0 => u.len() / rows,
         _ => 0,
     };
-    if b.u.is_some_and(|u| u.len() != rows.saturating_mul(k)) {
-        return Err(Error::arg(
-            "u",
-            format!("expected a multiple of {rows} values (T or B × T rows), got {}", b.u.map_or(0, <[f64]>::len)),
-        ));
-    }
     let sizes = SeriesSizes { n, m, k };
     b.check_lengths(sizes)?;
     for s in 0..b.series {

@@ -363,24 +363,36 @@ pub(super) fn filter_batch<'py>(
     };
     let batch = crate::Batch { y: yv, series: bs, steps, u: uv, u_shared, x0: x0v, p0: p0v };
     let shared = crate::linear::batch::shares_covariances(&model, &batch);
+    let covs = return_covs.then(|| if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] });
+    let (dict, shared) =
+        run_batch(py, [bs, steps, n], covs, |out| crate::filter_batch(&model, batch, form, out, threads))?;
+    dict.set_item("shared", shared)?;
+    Ok(dict)
+}
+
+/// Allocates a batch filter's outputs — x_filt (B, T, n), loglik (B,) and P_filt of shape
+/// `covs` when given — runs `filter` on them without the GIL, and returns their dict with what
+/// `filter` returned.
+pub(super) fn run_batch<'py, R: Send>(
+    py: Python<'py>,
+    [bs, steps, n]: [usize; 3],
+    covs: Option<Vec<usize>>,
+    filter: impl FnOnce(crate::BatchOutputs<'_>) -> crate::Result<R> + Send,
+) -> PyResult<(Bound<'py, PyDict>, R)> {
     let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
-    if return_covs {
-        specs.push(("P_filt", if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] }));
-    }
+    specs.extend(covs.map(|shape| ("P_filt", shape)));
     let spec_refs: Vec<(&'static str, &[usize])> = specs.iter().map(|(k, v)| (*k, v.as_slice())).collect();
     let mut out = OutArrays::new(py, "Y", &spec_refs)?;
     let mut slices = out.slices()?;
-    let shared = py.detach(|| {
+    let result = py.detach(|| {
         let mut it = slices.iter_mut();
         let x_filt = it.next().expect("x_filt");
         let loglik = it.next().expect("loglik");
         let p_filt = it.next().map(|p| &mut **p);
-        crate::filter_batch(&model, batch, form, crate::BatchOutputs { x_filt, p_filt, loglik }, threads)
+        filter(crate::BatchOutputs { x_filt, p_filt, loglik })
     })?;
     drop(slices);
-    let dict = out.into_dict(py)?;
-    dict.set_item("shared", shared)?;
-    Ok(dict)
+    Ok((out.into_dict(py)?, result))
 }
 
 /// The data of a batch argument of shape `shape` (shared by all series) or `(B, *shape)` (one

@@ -8,7 +8,7 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::model::batch_part;
+use super::model::{batch_part, run_batch};
 use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
 use crate::error::{Error, Result};
 use crate::linear::model::StepMatrix;
@@ -478,27 +478,13 @@ impl PyNonlinearModel {
             }
         };
         let batch = crate::Batch { y, series: bs, steps, u, u_shared, x0, p0 };
-        let mut specs: Vec<(&'static str, Vec<usize>)> = vec![("x_filt", vec![bs, steps, n]), ("loglik", vec![bs])];
-        if return_covs {
-            specs.push(("P_filt", vec![bs, steps, n, n]));
-        }
-        let spec_refs: Vec<(&'static str, &[usize])> = specs.iter().map(|(k, v)| (*k, v.as_slice())).collect();
-        let mut out = OutArrays::new(py, "Y", &spec_refs)?;
-        let mut slices = out.slices()?;
         let model = &self.inner;
-        py.detach(|| {
-            let mut it = slices.iter_mut();
-            let x_filt = it.next().expect("x_filt");
-            let loglik = it.next().expect("loglik");
-            let p_filt = it.next().map(|p| &mut **p);
-            let out = crate::BatchOutputs { x_filt, p_filt, loglik };
-            match method {
-                SmoothMethod::Ekf(options) => nonlinear::ekf_batch(model, batch, options, out, threads),
-                SmoothMethod::Ukf(points) => nonlinear::ukf_batch(model, batch, points, out, threads),
-            }
+        let covs = return_covs.then(|| vec![bs, steps, n, n]);
+        let (dict, ()) = run_batch(py, [bs, steps, n], covs, |out| match method {
+            SmoothMethod::Ekf(options) => nonlinear::ekf_batch(model, batch, options, out, threads),
+            SmoothMethod::Ukf(points) => nonlinear::ukf_batch(model, batch, points, out, threads),
         })?;
-        drop(slices);
-        out.into_dict(py)
+        Ok(dict)
     }
 }
 
