@@ -1,4 +1,5 @@
-"""N1, N1b and N2: the nonlinear Gaussian filters, kfast against filterpy (and kfast's linear filter).
+"""N1, N1b and N2: the nonlinear Gaussian filters, kfast against filterpy, dynamax and Stone Soup
+(and kfast's linear filter).
 
     python benches/bench_nonlinear.py [--quick]
 
@@ -11,11 +12,33 @@
 - N2: EKF with analytic Jacobians on CT; kfast's linear filter at n = 5, m = 2 beside it.
 
 kfast runs each with the built-in Rust model, with the model compiled from C
-(benches/c/ct_radar.c, gcc -O3, passed as ctypes function pointers: the path a numba @cfunc
-takes) and with the model as a vectorized Python callable (one call per step for all points). filterpy's UKF and EKF run the same model with its
-per-point Python functions (a short series: it is slow); its UKF is given the prior's sigma
-points for its first update, since it predicts first. Every contender's x_filt is checked
-against kfast's built-in run on the same steps. Contenders run interleaved; medians.
+(benches/c/ct_radar.c, gcc -O3, passed as ctypes function pointers), with the same C written as
+numba @cfunc's (numba 0.68; "not installed" without it) and with the model as a vectorized
+Python callable (one call per step for all points). filterpy's UKF and EKF run the same model
+with its per-point Python functions (a short series: it is slow); its UKF is given the prior's
+sigma points for its first update, since it predicts first.
+
+dynamax (jax.jit, CPU, float64; EKF Jacobians by jacfwd: derivatives, not differences) and
+Stone Soup's UnscentedKalmanPredictor/Updater (a short series, like filterpy) run in their own
+venv through benches/peers_nonlinear.py, which times them itself (a warm-up call first, so no
+jit compile; the same number of rounds; not interleaved with the rest). Create that venv with
+``python3 -m venv /work/venv-peers && /work/venv-peers/bin/pip install numpy scipy jax dynamax
+stonesoup`` (or point KFAST_PEER_PYTHON at another python that has them). Both take the prior as
+x(0|-1), like kfast (dynamax's initial_mean is the prior of emissions[0]).
+
+Conventions found: the simulated bearing crosses +-pi (first at step 2,285; 19 times in 100,000)
+and kfast wraps its innovation; dynamax does not wrap, so its h gets the observed bearing as
+input and returns the bearing within pi of it (filterpy and Stone Soup run 2,000 steps, before
+the first crossing). dynamax's psd_solve adds 1e-9 I to the innovation covariance S; against the
+bearing variance (7.6e-5) that moves x_filt by ~1e-5 early and ~1e-3 late (ranges up to 6 km);
+with it patched to 0, dynamax's UKF matches to ~1e-9 over all 100,000 steps, its EKF to ~3e-6
+(jacfwd through sin(w dt)/w loses digits where omega passes near 0). Stone Soup's kappa defaults
+to 3 - n (given as 0 here); its Merwe weights and its update P - K S K' are kfast's; its own
+models order the state (x, vx, y, vy, w) (ConstantTurn) and the radar (bearing, range) with
+Bearing objects (CartesianToBearingRange), so custom models in kfast's order are used.
+
+Every contender's x_filt is checked against kfast's built-in run on the same steps. Contenders
+run interleaved (the peer venv's apart); medians.
 """
 
 from __future__ import annotations
@@ -157,6 +180,75 @@ def compiled_model(ct):
     return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1])  # f, h keep the library loaded
 
 
+def numba_model(ct):
+    """CT and the radar as numba @cfunc's, statement for statement benches/c/ct_radar.c (so
+    x_filt matches the C and built-in runs), or None without numba."""
+    try:
+        import math
+
+        import numba
+        from numba import types
+    except ImportError:
+        return None
+    double_p = types.CPointer(types.double)
+    sig = types.void(double_p, types.intp, types.intp, types.int64, double_p, double_p)
+
+    # error_model="numpy": C's float semantics, no zero-division checks (w is tested first anyway)
+    @numba.cfunc(sig, error_model="numpy")
+    def f(X, k, n, t, u, out):
+        dt = 0.1
+        for i in range(k):
+            x, o = i * n, i * n  # row offsets of point i in X and out
+            w = X[x + 4]
+            S, C = math.sin(w * dt), math.cos(w * dt)
+            s, c = (dt, 0.0) if abs(w) < 1e-9 else (S / w, (1 - C) / w)
+            out[o] = X[x] + s * X[x + 2] - c * X[x + 3]
+            out[o + 1] = X[x + 1] + c * X[x + 2] + s * X[x + 3]
+            out[o + 2] = C * X[x + 2] - S * X[x + 3]
+            out[o + 3] = S * X[x + 2] + C * X[x + 3]
+            out[o + 4] = w
+
+    @numba.cfunc(sig, error_model="numpy")
+    def h(X, k, n, t, u, out):
+        for i in range(k):
+            out[2 * i] = math.hypot(X[i * n], X[i * n + 1])
+            out[2 * i + 1] = math.atan2(X[i * n + 1], X[i * n])
+
+    return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1])
+
+
+PEER_VENV = "/work/venv-peers"
+PEER_HOWTO = f"python3 -m venv {PEER_VENV} && {PEER_VENV}/bin/pip install numpy scipy jax dynamax stonesoup"
+
+
+def run_peers(ct, y, rounds, runs):
+    """Times the peers of ``runs`` ({name: steps}) in the peer venv (benches/peers_nonlinear.py):
+    {name: (seconds per call, x_filt) or error}, and the peers' versions."""
+    import json
+    import subprocess
+    import tempfile
+
+    python = os.environ.get("KFAST_PEER_PYTHON") or f"{PEER_VENV}/bin/python"
+    if not os.path.exists(python):
+        return {name: f"peer venv missing: {PEER_HOWTO} (or set KFAST_PEER_PYTHON)" for name in runs}, {}
+    with tempfile.TemporaryDirectory() as d:
+        for name, a in {"y": y, "Q": ct.Q, "R": R, "x0": X0, "P0": P0}.items():
+            np.save(os.path.join(d, name + ".npy"), np.asarray(a, dtype=float))
+        with open(os.path.join(d, "job.json"), "w") as f:
+            json.dump({"rounds": rounds, "runs": runs}, f)
+        script = os.path.join(os.path.dirname(__file__), "peers_nonlinear.py")
+        done = subprocess.run([python, script, d], capture_output=True, text=True)
+        if done.returncode:
+            error = "peer script failed: " + (done.stderr.strip().splitlines() or ["?"])[-1][:100]
+            return {name: error for name in runs}, {}
+        with open(os.path.join(d, "timings.json")) as f:
+            job = json.load(f)
+        out = {}
+        for name, r in job["runs"].items():
+            out[name] = r["error"] if "error" in r else (r["samples"], np.load(os.path.join(d, name + ".x_filt.npy")))
+        return out, job["versions"]
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
@@ -171,6 +263,7 @@ def main(argv=None):
         jac_h=lambda X, t, u: np.array([rb_jac_one(x) for x in X]), angles=[1],
     )
     compiled = compiled_model(ct)
+    jitted = numba_model(ct)
     merwe = kfast.sigma.merwe(0.5, 2.0, 0.0)
     out = ("x_filt", "P_filt")
     cv = kfast.models.constant_velocity(2, DT, q=1.0, r=1.0)
@@ -181,8 +274,11 @@ def main(argv=None):
         "N1: UKF on CT (Merwe 0.5, 2, 0)": [
             Contender("kfast built-in", lambda: builtin.ukf(y, X0, P0, points=merwe, outputs=out), T),
             Contender("kfast compiled C (cfunc path)", lambda: compiled.ukf(y, X0, P0, points=merwe, outputs=out), T),
+            Contender("kfast numba cfunc", lambda: jitted.ukf(y, X0, P0, points=merwe, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ukf(y[:T_py], X0, P0, points=merwe, outputs=out), T_py),
             Contender("filterpy UKF", filterpy_ukf(ct, y[:T_peer]), T_peer),
+            Contender("dynamax UKF", None, T),  # these run in the peer venv (run_peers)
+            Contender("Stone Soup UKF", None, T_peer),
         ],
         "N1b: UKF on the CV model (n = 4, m = 2)": [
             Contender("kfast built-in", lambda: cv_nl.ukf(y_cv, [1, -1, 0.5, 0.2], np.diag([10, 10, 1, 1.0]), points=merwe, outputs=out), T),
@@ -191,12 +287,21 @@ def main(argv=None):
         "N2: EKF on CT (analytic Jacobians)": [
             Contender("kfast built-in", lambda: builtin.ekf(y, X0, P0, outputs=out), T),
             Contender("kfast compiled C (cfunc path; differenced Jacobians)", lambda: compiled.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast numba cfunc (differenced Jacobians)", lambda: jitted.ekf(y, X0, P0, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ekf(y[:T_py], X0, P0, outputs=out), T_py),
             Contender("filterpy EKF", filterpy_ekf(ct, y[:T_peer]), T_peer),
+            Contender("dynamax EKF", None, T),
             Contender("kfast linear filter, n = 5, m = 2", lambda: lin5.filter(y, X0, P0, outputs=out), T),
         ],
     }
-    print(f"kfast {kfast.__version__}; T = {T:,} (Python callables {T_py:,}, filterpy {T_peer:,}); {rounds} rounds, medians")
+    peers = [c for contenders in workloads.values() for c in contenders if c.fn is None]
+    timed, versions = run_peers(ct, y, rounds, {c.name: c.steps for c in peers})
+    print(
+        f"kfast {kfast.__version__}; T = {T:,} (Python callables {T_py:,}, filterpy and Stone Soup {T_peer:,}); "
+        f"{rounds} rounds, medians"
+    )
+    numba_version = __import__("numba").__version__ if jitted is not None else "not installed"
+    print("peers: " + ", ".join(f"{k} {v}" for k, v in {**versions, "numba": numba_version}.items()))
     reference = {
         "N1": builtin.ukf(y, X0, P0, points=merwe).x_filt,
         "N2": builtin.ekf(y, X0, P0).x_filt,
@@ -205,16 +310,24 @@ def main(argv=None):
         "N1": [("kfast Python callable", python.ukf(y[:T_py], X0, P0, points=merwe).x_filt), ("filterpy UKF", filterpy_ukf(ct, y[:T_peer])())],
         "N2": [("kfast Python callable", python.ekf(y[:T_py], X0, P0).x_filt), ("filterpy EKF", filterpy_ekf(ct, y[:T_peer])())],
     }
-    if compiled is None:
-        for contenders in workloads.values():
-            for c in contenders:
-                if "compiled" in c.name:
-                    c.error = "no C compiler"
-    else:
-        checks["N1"].insert(0, ("kfast compiled C", compiled.ukf(y, X0, P0, points=merwe).x_filt))
-        checks["N2"].insert(0, ("kfast compiled C", compiled.ekf(y, X0, P0).x_filt))
+    for c in peers:
+        if isinstance(timed[c.name], str):
+            c.error = timed[c.name]
+        else:
+            c.samples, x = timed[c.name]
+            note = " (S + 1e-9 I: see the docstring)" if "dynamax" in c.name else ""
+            checks["N1" if "UKF" in c.name else "N2"].append((c.name + note, x))
+    for i, (model, what, error) in enumerate(((compiled, "compiled", "no C compiler"), (jitted, "numba", "not installed"))):
+        if model is None:
+            for contenders in workloads.values():
+                for c in contenders:
+                    if what in c.name:
+                        c.error = error
+        else:
+            checks["N1"].insert(i, (f"kfast {what}", model.ukf(y, X0, P0, points=merwe).x_filt))
+            checks["N2"].insert(i, (f"kfast {what}", model.ekf(y, X0, P0).x_filt))
     for name, contenders in workloads.items():
-        run_interleaved(contenders, rounds)
+        run_interleaved([c for c in contenders if c.fn is not None], rounds)
         base = contenders[0]
         print(f"\n{name}\n| contender | T | ns/step | IQR | /kfast built-in |\n|---|---:|---:|---:|---:|")
         for c in contenders:

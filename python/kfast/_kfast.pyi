@@ -173,6 +173,7 @@ class NonlinearModel:
         hess_f: Optional[Any] = None,
         hess_h: Optional[Any] = None,
         g: Optional[Any] = None,
+        noise_input: bool = False,
     ) -> None: ...
     def ekf(
         self,

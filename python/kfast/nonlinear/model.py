@@ -89,6 +89,17 @@ class NonlinearModel:
         shape (r, r). A constant G (an array), a Python function batched like f returning
         (k, n, r), or a compiled function of ``C_SIGNATURE`` writing k x n*r numbers. The filters
         add G Q G' with G = g(x(t|t), t, u[t]), the gain at the estimate where f is linearized.
+    noise_input : bool, default False
+        The process noise is an input of f: x[t+1] = f(x[t], w[t], t, u[t]) with w ~ N(0, Q), Q
+        of shape (r, r) (non-additive noise, e.g. a multiplicative disturbance). A Python f is
+        then called as ``f(X, W, t, u)`` with W of shape (k, r), one noise vector per point;
+        ``jac_f(X, W, t, u)`` returns (k, n, n + r), the Jacobian in x then w, and ``hess_f``
+        (k, n, n + r, n + r); a compiled f gets the rows (x, w) of n + r numbers (its n
+        argument is n + r). The EKF linearizes f at (x(t|t), 0) and adds L Q L' with
+        L = df/dw; the UKF places its time-update points on the augmented (x, w) ~
+        N((x(t|t), 0), diag(P(t|t), Q)) -- 2(n + r) + 1 Merwe or Julier points, with the weights
+        of dimension n + r -- and adds no Q (Wan & van der Merwe 2000). Not with ``g``, a
+        built-in f or a custom sigma-point set.
 
     Examples
     --------
@@ -116,6 +127,7 @@ class NonlinearModel:
         hess_f: Optional[Callable[..., ArrayLike]] = None,
         hess_h: Optional[Callable[..., ArrayLike]] = None,
         g: Union[PointFunction, ArrayLike, None] = None,
+        noise_input: bool = False,
     ) -> None:
         self.n_states: int = index("n", n)
         if self.n_states == 0:
@@ -138,11 +150,16 @@ class NonlinearModel:
             if given is not None and isinstance(fn, BuiltinFunction):
                 raise _kfast.KfastError(f"{name}: the built-in {name[-1]} has its own {what}")
         self.f, self.h = f, h
+        self.noise_input: bool = bool(noise_input)
+        f_spec = _spec("f", f)
+        if self.noise_input:
+            f_spec, jac_f, hess_f = _noise_as_input(f, f_spec, jac_f, hess_f, self.n_states, g)
         self.g: Union[PointFunction, np.ndarray, None] = _noise_gain(g, self.n_states, self.Q.shape[-1])
         self._core = _kfast.NonlinearModel(
-            _spec("f", f), _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles),
+            f_spec, _spec("h", h), self.Q, self.R, self.n_states, self.n_obs, list(self.angles),
             jac_f=jac_f, jac_h=jac_h, hess_f=hess_f, hess_h=hess_h,
             g=None if self.g is None else ("constant", self.g) if isinstance(self.g, np.ndarray) else _spec("g", self.g),
+            noise_input=self.noise_input,
         )
 
     @classmethod
@@ -162,7 +179,8 @@ class NonlinearModel:
         )
 
     def __repr__(self) -> str:
-        return f"NonlinearModel(n={self.n_states}, m={self.n_obs}, angles={list(self.angles)})"
+        extra = ", noise_input=True" if self.noise_input else ""
+        return f"NonlinearModel(n={self.n_states}, m={self.n_obs}, angles={list(self.angles)}{extra})"
 
     def ekf(
         self,
@@ -362,6 +380,23 @@ def _spec(name: str, fn: Any) -> Any:
     if not callable(fn):
         raise _kfast.KfastError(f"{name}: expected a callable {name}(X, t, u) or a kfast.models built-in, got {type(fn).__name__}")
     return fn
+
+
+def _noise_as_input(f: Any, f_spec: Any, jac_f: Any, hess_f: Any, n: int, g: Any) -> tuple[Any, Any, Any]:
+    """f, jac_f and hess_f of ``f(X, W, t, u)`` as functions of the augmented points (x, w),
+    which the compiled model passes as one (k, n + r) array; a compiled f takes those rows
+    as they are."""
+    if g is not None:
+        raise _kfast.KfastError("noise_input: a noise gain g and the noise as an input of f exclude each other")
+    if isinstance(f_spec, tuple):
+        if f_spec[0] == "cfunc":
+            return f_spec, jac_f, hess_f
+        raise _kfast.KfastError("noise_input: a built-in f has additive noise; write f(X, W, t, u) as a function")
+
+    def split(fn: Any) -> Any:
+        return None if fn is None else lambda Z, t, u: fn(Z[:, :n], Z[:, n:], t, u)
+
+    return split(f), split(jac_f), split(hess_f)
 
 
 def _noise_gain(g: Any, n: int, r: int) -> Any:

@@ -10,7 +10,9 @@ The prior (x0, P0) is x(0|-1), P(0|-1): each step is a measurement update, then 
 shape (k, n) to (k, n), ``h(X, t, u)`` to (k, m); ``u`` is u[t] or None. Jacobians are batched the
 same way: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n); Hessians ``hess_f`` ->
 (k, n, n, n) (one n x n Hessian per output component), ``hess_h`` -> (k, m, n, n). ``g(X, t, u)``
--> (k, n, r) for Q of size r x r, evaluated at x(t|t). Missing values (NaN) in y: the update uses
+-> (k, n, r) for Q of size r x r, evaluated at x(t|t). With ``noise_input=True`` the noise is an
+input of f instead, x[t+1] = f(x[t], w[t], t, u[t]): ``f(X, W, t, u)`` with W (k, r), ``jac_f``
+-> (k, n, n + r) (in x, then w), ``hess_f`` -> (k, n, n + r, n + r). Missing values (NaN) in y: the update uses
 the observed components only; a step with nothing observed skips it. ``angles`` lists the components of y
 that are angles: their innovations (and sigma-point deviations) are wrapped to [-pi, pi).
 
@@ -30,6 +32,7 @@ __all__ = [
     "cubature",
     "jacobian_by_differences",
     "hessian_by_differences",
+    "psd_cholesky",
     "ekf",
     "ukf",
     "extended_rts",
@@ -59,6 +62,34 @@ def _noise_cov(g, Q, x, n, t, u):
         return Q
     G = np.asarray(g(x[None, :], t, u), dtype=float)[0].reshape(n, -1)
     return G @ Q @ G.T
+
+
+def _augmented(f, n):
+    """f(X, W, t, u) as a function of the augmented points Z = (X, W), shape (k, n + r)."""
+    return None if f is None else (lambda Z, t, u: f(Z[:, :n], Z[:, n:], t, u))
+
+
+def _block_diag(P, Q):
+    n, r = len(P), len(Q)
+    A = np.zeros((n + r, n + r))
+    A[:n, :n], A[n:, n:] = P, Q
+    return A
+
+
+def psd_cholesky(A):
+    """The lower factor L (L L' = A) of a positive semidefinite A; a pivot at rounding level
+    (<= n eps max A_ii) leaves its column zero, so a singular A (even 0) has one."""
+    A = np.asarray(A, dtype=float)
+    n = len(A)
+    tol = n * np.finfo(float).eps * max(np.max(np.diag(A)), 0.0)
+    L = np.zeros_like(A)
+    for j in range(n):
+        d = A[j, j] - L[j, :j] @ L[j, :j]
+        if d <= tol:
+            continue
+        L[j, j] = np.sqrt(d)
+        L[j + 1 :, j] = (A[j + 1 :, j] - L[j + 1 :, :j] @ L[j, :j]) / L[j, j]
+    return L
 
 
 # ----------------------------------------------------------------------------------------------
@@ -172,8 +203,13 @@ def ekf(
     hess_h=None,
     angles=(),
     form="joseph",
+    noise_input=False,
 ):
     """The extended Kalman filter (Söderström (9.2)-(9.11)): h linearised at x(t|t-1), f at x(t|t).
+
+    With ``noise_input``, f(x, w) is linearised in both at (x(t|t), 0): P(t+1|t) = J diag(P, Q) J'
+    with J = [df/dx, df/dw] (= F P F' + L Q L'); the second-order correction takes the trace
+    over diag(P, Q).
 
     ``iterations=k`` relinearises the update k times: ``iteration="book"`` moves only the gain,
     the innovation staying y - h(x(t|t-1)) ((9.12)-(9.17)); ``"gauss-newton"`` is Gauss-Newton
@@ -241,12 +277,21 @@ def ekf(
             x_filt, P_filt = x, P
         out["x_filt"][t], out["P_filt"][t] = x_filt, P_filt
         # time update (9.10): f and G at x(t|t)
-        F = jac(f, jac_f, x_filt, t, ut)
-        x = _one(f, x_filt, t, ut)
-        if order == 2:
-            # f_bar_k = 1/2 tr(P(t|t) hess f_k), with P(t|t) already computed          (9.22)
-            x = x + 0.5 * np.einsum("ij,kji->k", P_filt, hess(f, hess_f, x_filt, t, ut))
-        P = F @ P_filt @ F.T + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
+        if noise_input:  # f(x, w) at (x(t|t), 0) with diag(P(t|t), Q)
+            Qt = _at(Q, t)
+            fa, point, cov = _augmented(f, n), np.concatenate([x_filt, np.zeros(len(Qt))]), _block_diag(P_filt, Qt)
+            J = jac(fa, _augmented(jac_f, n), point, t, ut)
+            x = _one(fa, point, t, ut)
+            if order == 2:
+                x = x + 0.5 * np.einsum("ij,kji->k", cov, hess(fa, _augmented(hess_f, n), point, t, ut))
+            P = J @ cov @ J.T
+        else:
+            F = jac(f, jac_f, x_filt, t, ut)
+            x = _one(f, x_filt, t, ut)
+            if order == 2:
+                # f_bar_k = 1/2 tr(P(t|t) hess f_k), with P(t|t) already computed          (9.22)
+                x = x + 0.5 * np.einsum("ij,kji->k", P_filt, hess(f, hess_f, x_filt, t, ut))
+            P = F @ P_filt @ F.T + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
         P = (P + P.T) / 2
     out["loglik"] = float(out["loglik_t"].sum())
     out["x_next"], out["P_next"] = x, P
@@ -285,8 +330,12 @@ class SigmaPoints:
         return np.sqrt(n), W, W.copy()
 
     def points(self, x, P):
+        return self.points_of_factor(x, np.linalg.cholesky(P))
+
+    def points_of_factor(self, x, L):
+        """The points of (x, L L') for a lower factor L."""
         c, Wm, _ = self.weights(len(x))
-        A = c * np.linalg.cholesky(P).T  # rows: the scaled columns of the lower factor
+        A = c * L.T  # rows: the scaled columns of the lower factor
         spread = np.concatenate([x + A, x - A])
         return spread if len(Wm) == 2 * len(x) else np.concatenate([x[None, :], spread])
 
@@ -353,11 +402,14 @@ def _unscented_moments(X, Z, Wm, Wc, angles=(), centred=None):
     return Z[0] + d, cov, cross
 
 
-def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
-    """The unscented Kalman filter (Julier & Uhlmann 1997; Wan & van der Merwe 2000), additive noise.
+def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False):
+    """The unscented Kalman filter (Julier & Uhlmann 1997; Wan & van der Merwe 2000).
 
     Update at t from points of (x(t|t-1), P(t|t-1)) (redrawn after the time update, as filterpy
     2.0 and Särkkä 2013 do); time update from points of (x(t|t), P(t|t)). P(t|t) = P - K S K'.
+    With ``noise_input`` the time update's points are those of the augmented (x(t|t), 0),
+    diag(P(t|t), Q) -- factor diag(chol P, psd_cholesky Q), weights of dimension n + r -- through
+    f(x, w), and no Q is added.
     """
     points = points or merwe()
     y = np.asarray(y, dtype=float)
@@ -387,12 +439,22 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
         else:
             x_filt, P_filt = x, P
         out["x_filt"][t], out["P_filt"][t] = x_filt, P_filt
-        Xf = points.points(x_filt, P_filt)
-        propagated = np.asarray(f(Xf, t, ut), dtype=float)
-        x, P, D = _unscented_moments(Xf, propagated, Wm, Wc, centred=getattr(points, "centred", None))
-        # D = Cov(x(t), x(t+1)): the unscented smoother's cross-covariance (Särkkä 2008)
-        out["D"][t] = D
-        P = P + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
+        if noise_input:
+            Qt = _at(Q, t)
+            r = len(Qt)
+            L = _block_diag(np.linalg.cholesky(P_filt), psd_cholesky(Qt))
+            Xa = points.points_of_factor(np.concatenate([x_filt, np.zeros(r)]), L)
+            _, Wm_a, Wc_a = points.weights(n + r)
+            propagated = np.asarray(f(Xa[:, :n], Xa[:, n:], t, ut), dtype=float)
+            x, P, D = _unscented_moments(Xa, propagated, Wm_a, Wc_a)
+            out["D"][t] = D[:n]  # the state rows of Cov((x, w), x(t+1))
+        else:
+            Xf = points.points(x_filt, P_filt)
+            propagated = np.asarray(f(Xf, t, ut), dtype=float)
+            x, P, D = _unscented_moments(Xf, propagated, Wm, Wc, centred=getattr(points, "centred", None))
+            # D = Cov(x(t), x(t+1)): the unscented smoother's cross-covariance (Särkkä 2008)
+            out["D"][t] = D
+            P = P + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
         P = (P + P.T) / 2
     out["loglik"] = float(out["loglik_t"].sum())
     out["x_next"], out["P_next"] = x, P
@@ -415,24 +477,32 @@ def _rts(filt, cross):
     return xs, Ps
 
 
-def extended_rts(f, h, Q, R, y, x0, P0, jac_f=None, jac_h=None, u=None, g=None, angles=(), form="joseph"):
-    """Extended RTS smoother (Särkkä 2013): J(t) = P(t|t) F(t)' P(t+1|t)^-1, F at x(t|t).
+def extended_rts(
+    f, h, Q, R, y, x0, P0, jac_f=None, jac_h=None, u=None, g=None, angles=(), form="joseph", noise_input=False
+):
+    """Extended RTS smoother (Särkkä 2013): J(t) = P(t|t) F(t)' P(t+1|t)^-1, F at x(t|t)
+    (with ``noise_input``, the x columns of f's Jacobian at (x(t|t), 0)).
     Returns (x_smooth, P_smooth, filter dict)."""
-    filt = ekf(f, h, Q, R, y, x0, P0, jac_f=jac_f, jac_h=jac_h, u=u, g=g, angles=angles, form=form)
+    filt = ekf(f, h, Q, R, y, x0, P0, jac_f=jac_f, jac_h=jac_h, u=u, g=g, angles=angles, form=form, noise_input=noise_input)
+    n = len(x0)
 
     def cross(t):
         ut = None if u is None else np.asarray(u[t], dtype=float)
         xf = filt["x_filt"][t]
-        F = _one(jac_f, xf, t, ut) if jac_f is not None else jacobian_by_differences(f, xf, t, ut)
+        if noise_input:
+            fn, J, xf = _augmented(f, n), _augmented(jac_f, n), np.concatenate([xf, np.zeros(len(_at(Q, t)))])
+        else:
+            fn, J = f, jac_f
+        F = (_one(J, xf, t, ut) if J is not None else jacobian_by_differences(fn, xf, t, ut))[:, :n]
         return filt["P_filt"][t] @ F.T
 
     xs, Ps = _rts(filt, cross)
     return xs, Ps, filt
 
 
-def unscented_rts(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=()):
+def unscented_rts(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False):
     """Unscented RTS smoother (Särkkä 2008): J(t) = D(t) P(t+1|t)^-1 with the forward pass's
     cross-covariance D(t) of x(t|t) and x(t+1|t). Returns (x_smooth, P_smooth, filter dict)."""
-    filt = ukf(f, h, Q, R, y, x0, P0, points=points, u=u, g=g, angles=angles)
+    filt = ukf(f, h, Q, R, y, x0, P0, points=points, u=u, g=g, angles=angles, noise_input=noise_input)
     xs, Ps = _rts(filt, lambda t: filt["D"][t])
     return xs, Ps, filt

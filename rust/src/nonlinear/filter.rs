@@ -15,9 +15,9 @@
 //! filter's measurement buffers again when a sensor with another m comes).
 
 use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angle, Differences, PointFunction};
-use super::model::{NoiseScratch, NonlinearModel};
-use super::sigma::{cholesky, place, unscented_transform, SigmaPoints, Transformed, Weights};
-use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
+use super::model::{NoiseScratch, NonlinearModel, Transition};
+use super::sigma::{cholesky, place, semidefinite_cholesky, unscented_transform, SigmaPoints, Transformed, Weights};
+use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize};
 use crate::core::dims::Dyn;
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
 use crate::core::Series;
@@ -116,7 +116,7 @@ pub(crate) fn ukf_run(
     cross: Option<&mut [f64]>,
 ) -> Result<f64> {
     let steps = model.check_run(y, u, x0, p0)?;
-    let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points)?;
+    let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points, model.noise_inputs())?;
     run(model, y, u, steps, filter, out, cross)
 }
 
@@ -142,8 +142,8 @@ fn run(
         total.add(&filter.state().gauss);
         filter.state().store(&mut out, t);
         let cross_t = cross.as_deref_mut().map(|c| &mut c[t * n * n..(t + 1) * n * n]);
-        let q = model.process_noise(t, filter.state().current(true).0, u_t, &mut noise)?;
-        filter.predict(model.f(), q, t, u_t, cross_t)?;
+        let transition = model.transition(t, filter.state().current(true).0, u_t, &mut noise)?;
+        filter.predict(transition, t, u_t, cross_t)?;
     }
     out.store_next(&filter.state().x, &filter.state().p);
     Ok(total.total())
@@ -165,8 +165,7 @@ pub(crate) trait GaussianFilter: Send + Sync {
     /// Cov(x(t), x(t+1) | y(0..t)) into `cross` when given.
     fn predict(
         &mut self,
-        f: &dyn PointFunction,
-        q: &[f64],
+        transition: Transition<'_>,
         t: usize,
         u: Option<&[f64]>,
         cross: Option<&mut [f64]>,
@@ -195,6 +194,7 @@ pub(crate) struct Ekf {
     h_at_xi: Vec<f64>,
     scratch_p: Vec<f64>,
     hess: Vec<f64>,
+    augmented: Augmented,
 }
 
 impl Ekf {
@@ -212,6 +212,7 @@ impl Ekf {
             h_at_xi: vec![0.0; m],
             scratch_p: vec![0.0; n * n],
             hess: Vec::new(),
+            augmented: Augmented::default(),
         })
     }
 }
@@ -287,59 +288,131 @@ impl GaussianFilter for Ekf {
 
     fn predict(
         &mut self,
-        f: &dyn PointFunction,
-        q: &[f64],
+        transition: Transition<'_>,
         t: usize,
         u: Option<&[f64]>,
         cross: Option<&mut [f64]>,
     ) -> Result<()> {
-        let Ekf { ws, options, diffs, jac_f, hess, .. } = self;
-        let n = ws.n;
-        // (9.10): f and its Jacobian at x̂(t|t)
-        evaluate(f, "f", &ws.x_filt, 1, t, u, &mut ws.x)?;
+        let Ekf { ws, options, diffs, jac_f, hess, augmented, .. } = self;
+        let (n, r, f) = (ws.n, transition.noise_inputs, transition.f);
+        let na = n + r;
+        let Step { x, p, x_filt, p_filt, fp, .. } = ws;
+        // (9.10): f and its Jacobian at x̂(t|t) -- with noise inputs at (x̂(t|t), 0), the
+        // Jacobian [F L] applied to diag(P(t|t), Q), which adds L Q L'
+        let (point, cov) =
+            if r == 0 { (&x_filt[..], &p_filt[..]) } else { augmented.fill(x_filt, p_filt, transition.q, n, r) };
+        evaluate(f, "f", point, 1, t, u, x)?;
         if options.second_order {
             // f̄_k = ½ tr(P(t|t) ∇²f_k), with P(t|t) already computed  (9.22)
-            hess.resize(n * n * n, 0.0);
-            hessian(f, "f", &ws.x_filt, t, u, diffs, &mut hess[..n * n * n])?;
-            add_half_traces(&mut ws.x, &ws.p_filt, hess, n);
+            hess.resize(n * na * na, 0.0);
+            hessian(f, "f", point, t, u, diffs, &mut hess[..n * na * na])?;
+            add_half_traces(x, cov, hess, na);
         }
-        jacobian(f, "f", &ws.x_filt, t, u, &[], diffs, jac_f)?;
-        mul::<Dyn>(&mut ws.fp, jac_f, &ws.p_filt, n, n, n);
-        mul_bt_sym::<Dyn>(&mut ws.p, &ws.fp, jac_f, n, n);
+        jac_f.resize(n * na, 0.0);
+        jacobian(f, "f", point, t, u, &[], diffs, jac_f)?;
+        fp.resize(n * na, 0.0);
+        mul::<Dyn>(fp, jac_f, cov, n, na, na);
+        mul_bt_sym::<Dyn>(p, fp, jac_f, n, na);
         if let Some(c) = cross {
-            // P(t|t) F' = (F P(t|t))'
-            transpose(c, &ws.fp, n, n);
+            // P(t|t) F' = (F P(t|t))', the first n columns of J diag(P(t|t), Q)
+            for (i, row) in c.chunks_exact_mut(n).enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = fp[j * na + i];
+                }
+            }
         }
-        ws.add_process_noise(q);
+        if r == 0 {
+            ws.add_process_noise(transition.q);
+        }
         Ok(())
+    }
+}
+
+/// The augmented state (x̂(t|t), 0) and covariance diag(P(t|t), Q) of a time update with the
+/// noise as an input of f.
+#[derive(Default)]
+struct Augmented {
+    x: Vec<f64>,
+    p: Vec<f64>,
+}
+
+impl Augmented {
+    fn fill(&mut self, x: &[f64], p: &[f64], q: &[f64], n: usize, r: usize) -> (&[f64], &[f64]) {
+        let na = n + r;
+        self.x.resize(na, 0.0);
+        self.x[..n].copy_from_slice(x);
+        self.p.resize(na * na, 0.0);
+        self.p.fill(0.0);
+        for i in 0..n {
+            self.p[i * na..][..n].copy_from_slice(&p[i * n..][..n]);
+        }
+        for i in 0..r {
+            self.p[(n + i) * na + n..][..r].copy_from_slice(&q[i * r..][..r]);
+        }
+        (&self.x, &self.p)
     }
 }
 
 /// The UKF between steps, with its sigma points and scratch.
 pub(crate) struct Ukf {
     ws: Step,
+    /// The points of x̂(t|t−1), P(t|t−1) through h.
+    update_pts: PointSet,
+    /// The points of x̂(t|t), P(t|t) through f -- with noise inputs, of the augmented
+    /// (x̂(t|t), 0), diag(P(t|t), Q).
+    predict_pts: PointSet,
+    /// The augmented centre (x̂(t|t), 0) and the lower factor of Q.
+    centre: Vec<f64>,
+    q_factor: Vec<f64>,
+}
+
+/// A sigma-point set for one dimension d, mapped to `out` numbers per point, with its scratch.
+struct PointSet {
     weights: Weights,
     factor: Vec<f64>,
     sigma: Vec<f64>,
-    images_h: Vec<f64>,
-    images_f: Vec<f64>,
-    through_h: Transformed,
-    through_f: Transformed,
+    images: Vec<f64>,
+    through: Transformed,
+}
+
+impl PointSet {
+    fn new(points: &SigmaPoints, d: usize, out: usize) -> Self {
+        let k = points.count(d);
+        PointSet {
+            weights: points.weights(d),
+            factor: vec![0.0; d * d],
+            sigma: vec![0.0; k * d],
+            images: vec![0.0; k * out],
+            through: Transformed::new(k, d, out),
+        }
+    }
 }
 
 impl Ukf {
-    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], points: SigmaPoints) -> Result<Self> {
+    /// The UKF for n states and m outputs; with `noise_inputs` r > 0, f takes (x, w) and the
+    /// time update places points of the augmented n + r numbers.
+    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], points: SigmaPoints, noise_inputs: usize) -> Result<Self> {
+        let r = noise_inputs;
         points.validate(n)?;
-        let k = points.count(n);
+        if r > 0 {
+            if let SigmaPoints::Custom(_) = points {
+                return Err(Error::arg(
+                    "points",
+                    format!(
+                        "a custom set has one size; with the noise an input of f the time update needs \
+                         points for n + r = {} numbers as well as n = {n} (use merwe, julier or cubature)",
+                        n + r
+                    ),
+                ));
+            }
+            points.validate(n + r)?;
+        }
         Ok(Ukf {
             ws: Step::new(n, m, x0, p0),
-            weights: points.weights(n),
-            factor: vec![0.0; n * n],
-            sigma: vec![0.0; k * n],
-            images_h: vec![0.0; k * m],
-            images_f: vec![0.0; k * n],
-            through_h: Transformed::new(k, n, m),
-            through_f: Transformed::new(k, n, n),
+            update_pts: PointSet::new(&points, n, m),
+            predict_pts: PointSet::new(&points, n + r, n),
+            centre: vec![0.0; n + r],
+            q_factor: vec![0.0; r * r],
         })
     }
 }
@@ -358,19 +431,20 @@ impl GaussianFilter for Ukf {
     }
 
     fn update(&mut self, sensor: Sensor<'_>, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<()> {
-        let (n, m, k) = (self.ws.n, sensor.h.dim_out(), self.weights.mean.len());
+        let (n, m) = (self.ws.n, sensor.h.dim_out());
+        let k = self.update_pts.weights.mean.len();
         if self.ws.fit(m) {
-            self.images_h.resize(k * m, 0.0);
-            self.through_h = Transformed::new(k, n, m);
+            self.update_pts.images.resize(k * m, 0.0);
+            self.update_pts.through = Transformed::new(k, n, m);
         }
-        let Ukf { ws, weights, factor, sigma, images_h, through_h, .. } = self;
+        let Ukf { ws, update_pts: PointSet { weights, factor, sigma, images, through }, .. } = self;
         square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
         place(weights, &ws.x, factor, sigma);
-        evaluate(sensor.h, "h", sigma, k, t, u, images_h)?;
-        unscented_transform(weights, sigma, images_h, sensor.angles, true, through_h);
-        ws.y_hat.copy_from_slice(&through_h.mean);
-        ws.s_full.copy_from_slice(&through_h.cov);
-        ws.c_full.copy_from_slice(&through_h.cross);
+        evaluate(sensor.h, "h", sigma, k, t, u, images)?;
+        unscented_transform(weights, sigma, images, sensor.angles, true, through);
+        ws.y_hat.copy_from_slice(&through.mean);
+        ws.s_full.copy_from_slice(&through.cov);
+        ws.c_full.copy_from_slice(&through.cross);
         ws.add_measurement_noise(sensor);
         ws.observe(sensor, y);
         if ws.observed.is_empty() {
@@ -383,24 +457,44 @@ impl GaussianFilter for Ukf {
 
     fn predict(
         &mut self,
-        f: &dyn PointFunction,
-        q: &[f64],
+        transition: Transition<'_>,
         t: usize,
         u: Option<&[f64]>,
         cross: Option<&mut [f64]>,
     ) -> Result<()> {
-        let Ukf { ws, weights, factor, sigma, images_f, through_f, .. } = self;
-        let (n, k) = (ws.n, weights.mean.len());
-        square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
-        place(weights, &ws.x_filt, factor, sigma);
-        evaluate(f, "f", sigma, k, t, u, images_f)?;
-        unscented_transform(weights, sigma, images_f, &[], cross.is_some(), through_f);
-        ws.x.copy_from_slice(&through_f.mean);
-        ws.p.copy_from_slice(&through_f.cov);
-        if let Some(c) = cross {
-            c.copy_from_slice(&through_f.cross);
+        let Ukf { ws, update_pts, predict_pts, centre, q_factor } = self;
+        let PointSet { weights, factor, sigma, images, through } = predict_pts;
+        let (n, r, k) = (ws.n, transition.noise_inputs, weights.mean.len());
+        if r == 0 {
+            square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
+            place(weights, &ws.x_filt, factor, sigma);
+        } else {
+            // the augmented (x̂(t|t), 0) with the factor diag(L, L_Q) of diag(P(t|t), Q); Q may
+            // be singular (its factor then has zero columns)
+            let na = n + r;
+            square_root(&mut update_pts.factor, &ws.p_filt, n, "P(t|t)", t)?;
+            semidefinite_cholesky(q_factor, transition.q, r);
+            factor.fill(0.0);
+            for i in 0..n {
+                factor[i * na..][..n].copy_from_slice(&update_pts.factor[i * n..][..n]);
+            }
+            for i in 0..r {
+                factor[(n + i) * na + n..][..r].copy_from_slice(&q_factor[i * r..][..r]);
+            }
+            centre[..n].copy_from_slice(&ws.x_filt);
+            place(weights, centre, factor, sigma);
         }
-        ws.add_process_noise(q);
+        evaluate(transition.f, "f", sigma, k, t, u, images)?;
+        unscented_transform(weights, sigma, images, &[], cross.is_some(), through);
+        ws.x.copy_from_slice(&through.mean);
+        ws.p.copy_from_slice(&through.cov);
+        if let Some(c) = cross {
+            // Cov(x(t), x(t+1)): the state rows of the (augmented) points' cross-covariance
+            c.copy_from_slice(&through.cross[..n * n]);
+        }
+        if r == 0 {
+            ws.add_process_noise(transition.q);
+        }
         Ok(())
     }
 }

@@ -21,7 +21,13 @@ use crate::linear::model::StepMatrix;
 /// or, with a noise gain g ([`with_noise_gain`](Self::with_noise_gain)),
 /// `x[t+1] = f(x[t], t, u[t]) + g(x[t], t, u[t]) w[t]` with g(x) n × r and Q r × r: the filters
 /// then add `G Q G'` with G = g(x̂(t|t)), the gain at the estimate (Söderström (9.2)–(9.11)
-/// with G(t) evaluated where f is linearized).
+/// with G(t) evaluated where f is linearized),
+///
+/// or, with the noise an input of f ([`with_noise_input`](Self::with_noise_input)),
+/// `x[t+1] = f(x[t], w[t], t, u[t])` with Q r × r: f takes the n + r numbers (x, w). The EKF
+/// linearizes f in both at (x̂(t|t), 0) and adds `L Q L'` with L = ∂f/∂w; the UKF propagates
+/// sigma points of the augmented (x, w) ~ N((x̂(t|t), 0), diag(P(t|t), Q)) through f
+/// (Julier & Uhlmann 1997; Wan & van der Merwe 2000, the augmented UKF).
 ///
 /// Q and R are constant or given per step as in [`LinearGaussian`](crate::LinearGaussian)
 /// (`Q[t]` takes `x[t]` to `x[t+1]`, `R[t]` goes with `y[t]`); a singular Q (even 0) is allowed.
@@ -31,10 +37,32 @@ use crate::linear::model::StepMatrix;
 pub struct NonlinearModel {
     f: Arc<dyn PointFunction>,
     h: Arc<dyn PointFunction>,
-    g: Option<Arc<dyn PointFunction>>,
+    noise: ProcessNoise,
     q: StepMatrix,
     r: StepMatrix,
     angles: Vec<usize>,
+}
+
+/// How the process noise w ~ N(0, Q) enters the transition.
+#[derive(Clone)]
+enum ProcessNoise {
+    /// `f(x) + w`, Q n × n.
+    Additive,
+    /// `f(x) + g(x) w`, Q r × r.
+    Gain(Arc<dyn PointFunction>),
+    /// `f(x, w)`, Q r × r: f takes n + r numbers.
+    Input,
+}
+
+/// The time update's model at one step: f and the covariance of its noise.
+#[derive(Clone, Copy)]
+pub(crate) struct Transition<'a> {
+    pub f: &'a dyn PointFunction,
+    /// The n × n covariance added to the state (Q, or G Q G'), or, when the noise is an input
+    /// of f, the r × r covariance of that input.
+    pub q: &'a [f64],
+    /// r when the noise is an input of f (which then takes n + r numbers), else 0.
+    pub noise_inputs: usize,
 }
 
 impl std::fmt::Debug for NonlinearModel {
@@ -54,7 +82,7 @@ impl NonlinearModel {
         r: StepMatrix,
         angles: Vec<usize>,
     ) -> Result<Self> {
-        Self::validated(f, None, h, q, r, angles)
+        Self::validated(f, ProcessNoise::Additive, h, q, r, angles)
     }
 
     /// [`new`](Self::new) with the noise gain `g`, whose `dim_out` is n·r (G row-major, n × r)
@@ -67,41 +95,65 @@ impl NonlinearModel {
         r: StepMatrix,
         angles: Vec<usize>,
     ) -> Result<Self> {
-        Self::validated(f, Some(g), h, q, r, angles)
+        Self::validated(f, ProcessNoise::Gain(g), h, q, r, angles)
     }
 
-    fn validated(
+    /// [`new`](Self::new) with the noise an input of f: `f.dim_in()` is n + r (the state,
+    /// then the noise) for the r × r `q`, and `f.dim_out()` is n.
+    pub fn with_noise_input(
         f: Arc<dyn PointFunction>,
-        g: Option<Arc<dyn PointFunction>>,
         h: Arc<dyn PointFunction>,
         q: StepMatrix,
         r: StepMatrix,
         angles: Vec<usize>,
     ) -> Result<Self> {
-        let n = f.dim_in();
-        if f.dim_out() != n {
-            return Err(Error::arg("f", format!("maps {n} states to {} numbers, not to {n}", f.dim_out())));
+        Self::validated(f, ProcessNoise::Input, h, q, r, angles)
+    }
+
+    fn validated(
+        f: Arc<dyn PointFunction>,
+        noise: ProcessNoise,
+        h: Arc<dyn PointFunction>,
+        q: StepMatrix,
+        r: StepMatrix,
+        angles: Vec<usize>,
+    ) -> Result<Self> {
+        let n = f.dim_out();
+        let noise_dim = match &noise {
+            ProcessNoise::Additive => n,
+            ProcessNoise::Gain(_) | ProcessNoise::Input => q.rows(),
+        };
+        let f_inputs = if matches!(noise, ProcessNoise::Input) { n + noise_dim } else { n };
+        if f.dim_in() != f_inputs {
+            return Err(Error::arg(
+                "f",
+                match noise {
+                    ProcessNoise::Input => format!(
+                        "takes {} numbers, expected the n = {n} states and the r = {noise_dim} noise inputs of Q",
+                        f.dim_in()
+                    ),
+                    _ => format!("maps {} states to {n} numbers, not to {}", f.dim_in(), f.dim_in()),
+                },
+            ));
         }
         if h.dim_in() != n {
-            return Err(Error::arg("h", format!("takes {} states, but f takes n = {n}", h.dim_in())));
+            return Err(Error::arg("h", format!("takes {} states, but f gives n = {n}", h.dim_in())));
         }
         let m = h.dim_out();
-        let noise_dim = match &g {
-            None => n,
-            Some(g) => {
-                let r = q.rows();
-                if g.dim_in() != n {
-                    return Err(Error::arg("g", format!("takes {} states, but f takes n = {n}", g.dim_in())));
-                }
-                if g.dim_out() != n * r {
-                    return Err(Error::arg(
-                        "g",
-                        format!("gives {} numbers, expected n × r = {n} × {r} for Q of shape ({r}, {r})", g.dim_out()),
-                    ));
-                }
-                r
+        if let ProcessNoise::Gain(g) = &noise {
+            if g.dim_in() != n {
+                return Err(Error::arg("g", format!("takes {} states, but f takes n = {n}", g.dim_in())));
             }
-        };
+            if g.dim_out() != n * noise_dim {
+                return Err(Error::arg(
+                    "g",
+                    format!(
+                        "gives {} numbers, expected n × r = {n} × {noise_dim} for Q of shape ({noise_dim}, {noise_dim})",
+                        g.dim_out()
+                    ),
+                ));
+            }
+        }
         check_covariance("Q", &q, noise_dim)?;
         check_covariance("R", &r, m)?;
         if let (Some(a), Some(b)) = (q.steps(), r.steps()) {
@@ -117,12 +169,12 @@ impl NonlinearModel {
                 return Err(Error::arg("angles", format!("index {a} is listed twice")));
             }
         }
-        Ok(NonlinearModel { f, h, g, q, r, angles })
+        Ok(NonlinearModel { f, h, noise, q, r, angles })
     }
 
     /// The state size n.
     pub fn n_states(&self) -> usize {
-        self.f.dim_in()
+        self.f.dim_out()
     }
 
     /// The output size m.
@@ -137,7 +189,11 @@ impl NonlinearModel {
 
     /// Whether f, h and g can run on several threads at once (see [`PointFunction::parallel`]).
     pub fn parallel(&self) -> bool {
-        self.f.parallel() && self.h.parallel() && self.g.as_ref().is_none_or(|g| g.parallel())
+        let g_parallel = match &self.noise {
+            ProcessNoise::Gain(g) => g.parallel(),
+            _ => true,
+        };
+        self.f.parallel() && self.h.parallel() && g_parallel
     }
 
     /// The angular outputs.
@@ -145,26 +201,26 @@ impl NonlinearModel {
         &self.angles
     }
 
-    pub(crate) fn f(&self) -> &dyn PointFunction {
-        &*self.f
-    }
-
     /// The measurement model of step t.
     pub(crate) fn sensor(&self, t: usize) -> Sensor<'_> {
         Sensor { h: &*self.h, r: self.r.at(t), angles: &self.angles }
     }
 
-    /// The noise covariance the time update from x̂(t|t) = `x` adds: Q(t), or G Q(t) G' with
+    /// The time update's model from x̂(t|t) = `x`: f and Q(t), or G Q(t) G' with
     /// G = g(x, t, u) (into `scratch`; g's output checked finite, an error names g and t).
-    pub(crate) fn process_noise<'a>(
+    pub(crate) fn transition<'a>(
         &'a self,
         t: usize,
         x: &[f64],
         u: Option<&[f64]>,
         scratch: &'a mut NoiseScratch,
-    ) -> Result<&'a [f64]> {
-        let q = self.q.at(t);
-        let Some(g) = &self.g else { return Ok(q) };
+    ) -> Result<Transition<'a>> {
+        let (f, q) = (&*self.f, self.q.at(t));
+        let g = match &self.noise {
+            ProcessNoise::Additive => return Ok(Transition { f, q, noise_inputs: 0 }),
+            ProcessNoise::Input => return Ok(Transition { f, q, noise_inputs: self.q.rows() }),
+            ProcessNoise::Gain(g) => g,
+        };
         let (n, r) = (self.n_states(), self.q.rows());
         scratch.gain.resize(n * r, 0.0);
         scratch.gq.resize(n * r, 0.0);
@@ -176,12 +232,20 @@ impl NonlinearModel {
         // G Q G', one triangle mirrored: exactly symmetric
         mul::<Dyn>(&mut scratch.gq, &scratch.gain, q, n, r, r);
         mul_bt_sym::<Dyn>(&mut scratch.noise, &scratch.gq, &scratch.gain, n, r);
-        Ok(&scratch.noise)
+        Ok(Transition { f, q: &scratch.noise, noise_inputs: 0 })
     }
 
     /// Whether the model has a noise gain g.
     pub fn has_noise_gain(&self) -> bool {
-        self.g.is_some()
+        matches!(self.noise, ProcessNoise::Gain(_))
+    }
+
+    /// r when the process noise is an input of f (f takes n + r numbers), else 0.
+    pub fn noise_inputs(&self) -> usize {
+        match self.noise {
+            ProcessNoise::Input => self.q.rows(),
+            _ => 0,
+        }
     }
 
     /// Validates data, inputs and prior for a run; returns T.
@@ -216,7 +280,7 @@ fn check_covariance(arg: &'static str, mat: &StepMatrix, size: usize) -> Result<
     Ok(())
 }
 
-/// Scratch of [`NonlinearModel::process_noise`]: G, G Q and G Q G'.
+/// Scratch of [`NonlinearModel::transition`]: G, G Q and G Q G'.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct NoiseScratch {
     gain: Vec<f64>,

@@ -233,6 +233,33 @@ fn cholesky_sized(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(),
     Ok(())
 }
 
+/// The lower factor L (L L' = a) of the symmetric positive *semi*definite `a[n×n]` into `l`:
+/// a pivot at rounding level (≤ n ε max aᵢᵢ) leaves its column zero, which is exact for a
+/// positive semidefinite matrix (its Schur complement's column is then zero too), so a
+/// singular covariance (a noise of lower rank, even 0) has a factor.
+pub(crate) fn semidefinite_cholesky(l: &mut [f64], a: &[f64], n: usize) {
+    let tol = n as f64 * f64::EPSILON * (0..n).map(|i| a[i * n + i]).fold(0.0, f64::max);
+    l.fill(0.0);
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= l[j * n + k] * l[j * n + k];
+        }
+        if d <= tol {
+            continue;
+        }
+        let d = d.sqrt();
+        l[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= l[i * n + k] * l[j * n + k];
+            }
+            l[i * n + j] = s / d;
+        }
+    }
+}
+
 /// The points of (x, P) into `out` (`count × n`), given the lower factor `l` of P.
 pub(crate) fn place(w: &Weights, x: &[f64], l: &[f64], out: &mut [f64]) {
     with_small!(x.len(), |n| place_sized(w, &x[..n], &l[..n * n], out, n))

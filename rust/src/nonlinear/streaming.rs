@@ -34,7 +34,7 @@ impl NonlinearKalmanFilter {
     /// The UKF (with the sigma points `points`) from the prior (x0, P0).
     pub fn ukf(model: Arc<NonlinearModel>, x0: &[f64], p0: &[f64], points: SigmaPoints) -> Result<Self> {
         check_prior(model.n_states(), x0, p0)?;
-        let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points)?;
+        let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points, model.noise_inputs())?;
         Ok(Self::of(model, Box::new(filter)))
     }
 
@@ -136,8 +136,8 @@ impl NonlinearKalmanFilter {
             self.filter.state_mut().carry(false);
         }
         let model = Arc::clone(&self.model);
-        let q = model.process_noise(t, self.filter.state().current(true).0, u, &mut self.noise)?;
-        self.filter.predict(model.f(), q, t, u, None)?;
+        let transition = model.transition(t, self.filter.state().current(true).0, u, &mut self.noise)?;
+        self.filter.predict(transition, t, u, None)?;
         self.t += 1;
         self.filtered = false;
         Ok(())

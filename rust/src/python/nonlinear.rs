@@ -315,7 +315,7 @@ pub(super) struct PyNonlinearModel {
 #[pymethods]
 impl PyNonlinearModel {
     #[new]
-    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None, hess_f=None, hess_h=None, g=None))]
+    #[pyo3(signature = (f, h, Q, R, n, m, angles, jac_f=None, jac_h=None, hess_f=None, hess_h=None, g=None, noise_input=false))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -331,12 +331,19 @@ impl PyNonlinearModel {
         hess_f: Option<&Bound<'_, PyAny>>,
         hess_h: Option<&Bound<'_, PyAny>>,
         g: Option<&Bound<'_, PyAny>>,
+        noise_input: bool,
     ) -> PyResult<Self> {
-        let f = point_function("f", f, (jac_f, hess_f), n, &[n])?;
-        let h = point_function("h", h, (jac_h, hess_h), n, &[m])?;
         let (q, r) = (step_matrix("Q", &Q)?, step_matrix("R", &R)?);
+        // with the noise an input of f, f takes the n + r numbers (x, w)
+        let f_inputs = if noise_input { n + q.rows() } else { n };
+        let f = point_function("f", f, (jac_f, hess_f), f_inputs, &[n])?;
+        let h = point_function("h", h, (jac_h, hess_h), n, &[m])?;
         let inner = match g {
+            None if noise_input => nonlinear::NonlinearModel::with_noise_input(f, h, q, r, angles)?,
             None => nonlinear::NonlinearModel::new(f, h, q, r, angles)?,
+            Some(_) if noise_input => {
+                return Err(KfastError::new_err("g: a noise gain and the noise as an input of f exclude each other"))
+            }
             Some(g) => {
                 let g = point_function("g", g, (None, None), n, &[n, q.rows()])?;
                 nonlinear::NonlinearModel::with_noise_gain(f, g, h, q, r, angles)?
