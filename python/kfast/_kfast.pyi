@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kfast.linear.model import LinearGaussian as _Model
-from kfast._typing import DareMethod, Form, Iteration
+from kfast._typing import DareMethod, Form, Iteration, UkfForm
 
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the
 # package converts array-likes first); the streaming objects take array-likes themselves.
@@ -195,6 +195,7 @@ class NonlinearModel:
         outputs: list[str],
         points: PointsSpec,
         u: Optional[NDArray[np.float64]] = None,
+        form: UkfForm = "standard",
     ) -> dict[str, Any]: ...
     def smooth(
         self,
@@ -204,7 +205,7 @@ class NonlinearModel:
         method: str,
         points: PointsSpec,
         u: Optional[NDArray[np.float64]] = None,
-        form: Form = "joseph",
+        form: Union[Form, UkfForm] = "joseph",
         iterations: int = 0,
         iteration: Iteration = "book",
         order: int = 1,
@@ -219,7 +220,7 @@ class NonlinearModel:
         u: Optional[NDArray[np.float64]] = None,
         return_covs: bool = True,
         threads: Optional[int] = None,
-        form: Form = "joseph",
+        form: Union[Form, UkfForm] = "joseph",
         iterations: int = 0,
         iteration: Iteration = "book",
         order: int = 1,
@@ -236,7 +237,7 @@ class NonlinearKalmanFilter:
         P0: NDArray[np.float64],
         method: str,
         points: PointsSpec,
-        form: Form = "joseph",
+        form: Union[Form, UkfForm] = "joseph",
         iterations: int = 0,
         iteration: Iteration = "book",
         order: int = 1,

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from typing import Iterable, Literal, Union
 
-__all__ = ["Form", "Iteration", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
+__all__ = ["Form", "UkfForm", "Iteration", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
 
 Form = Literal["joseph", "standard"]
+UkfForm = Literal["standard", "sqrt"]
 """The covariance measurement update: Joseph's (I-KH)P(I-KH)' + KRK' or the standard P - KSK'."""
 
 Iteration = Literal["book", "gauss-newton"]

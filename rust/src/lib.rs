@@ -41,8 +41,10 @@
 //!   continuous-time models.
 //! - [`NonlinearModel`] of f and h given as [`PointFunction`]s (built-ins in
 //!   [`nonlinear::models`]), [`ekf_into`] (EKF, iterated: [`EkfOptions`]) and [`ukf_into`]
-//!   (UKF with [`SigmaPoints`]): the nonlinear Gaussian filters; a noise gain g through
-//!   [`NonlinearModel::with_noise_gain`]; [`ekf_batch`] / [`ukf_batch`] for many tracks.
+//!   (UKF with [`SigmaPoints`], standard or square-root: [`UkfOptions`]): the nonlinear
+//!   Gaussian filters; a noise gain g through [`NonlinearModel::with_noise_gain`], noise as an
+//!   input of f through [`NonlinearModel::with_noise_input`]; [`ekf_batch`] / [`ukf_batch`] for
+//!   many tracks.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -82,7 +84,7 @@ pub use linear::smoother::{
 };
 pub use nonlinear::{
     ekf_batch, ekf_into, smooth_nonlinear_into, ukf_batch, ukf_into, EkfOptions, Iteration, NonlinearKalmanFilter,
-    NonlinearModel, PointFunction, SigmaPoints, SmoothMethod,
+    NonlinearModel, PointFunction, SigmaPoints, SmoothMethod, UkfForm, UkfOptions,
 };
 pub use riccati::{
     solve_continuous_are, solve_continuous_lyapunov, solve_discrete_are, solve_discrete_lyapunov,

@@ -105,7 +105,7 @@ fn on_a_linear_model_the_nonlinear_filters_are_the_kalman_filter() {
                 SigmaPoints::Julier { kappa: 1.0 },
                 SigmaPoints::Cubature,
             ] {
-                let got = run(|out| ukf_into(&model, series(), None, &X0, &P0, points, out));
+                let got = run(|out| ukf_into(&model, series(), None, &X0, &P0, points.into(), out));
                 assert_same(&got, &want, 1e-9);
             }
         }
@@ -126,7 +126,7 @@ fn a_singular_covariance_has_no_sigma_points_and_the_error_names_the_step() {
         None,
         &X0,
         &p0,
-        SigmaPoints::Cubature,
+        SigmaPoints::Cubature.into(),
         FilterOutputs::default(),
     )
     .unwrap_err();
@@ -163,7 +163,7 @@ fn the_batch_filters_give_each_series_its_own_filter() {
                 (vec![f64::NAN; bs * t * n], vec![f64::NAN; bs * t * n * n], vec![f64::NAN; bs]);
             let out = BatchOutputs { x_filt: &mut x, p_filt: Some(&mut p), loglik: &mut ll };
             if ukf {
-                ukf_batch(&model, batch, points.clone(), out, threads).unwrap();
+                ukf_batch(&model, batch, points.clone().into(), out, threads).unwrap();
             } else {
                 ekf_batch(&model, batch, options, out, threads).unwrap();
             }
@@ -172,7 +172,7 @@ fn the_batch_filters_give_each_series_its_own_filter() {
                 let (x0b, p0b) = (&x0[b * n..(b + 1) * n], &p0[b * n * n..(b + 1) * n * n]);
                 let one = run(|o| {
                     if ukf {
-                        ukf_into(&model, ys, None, x0b, p0b, points.clone(), o)
+                        ukf_into(&model, ys, None, x0b, p0b, points.clone().into(), o)
                     } else {
                         ekf_into(&model, ys, None, x0b, p0b, options, o)
                     }
@@ -223,8 +223,8 @@ fn a_constant_noise_gain_is_the_model_with_g_q_g_transposed() {
     let y = data();
     let ys = Series::new("y", &y, 30, 2).unwrap();
     let points = SigmaPoints::Cubature;
-    let a = run(|o| ukf_into(&with_gain, ys, None, &X0, &P0, points.clone(), o));
-    let b = run(|o| ukf_into(&folded, ys, None, &X0, &P0, points, o));
+    let a = run(|o| ukf_into(&with_gain, ys, None, &X0, &P0, points.clone().into(), o));
+    let b = run(|o| ukf_into(&folded, ys, None, &X0, &P0, points.into(), o));
     for (x, z) in a.p_pred.iter().zip(&b.p_pred) {
         assert!((x - z).abs() <= 1e-12 * z.abs().max(1.0), "{x} vs {z}");
     }

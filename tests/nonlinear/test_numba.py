@@ -354,12 +354,6 @@ def test_a_compiled_noise_gain_is_used():
     assert np.abs(fixed.P_next - got["ekf"].P_next).max() > 1e-3 * np.abs(got["ekf"].P_next).max()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kfast bug: a compiled jac_f/jac_h is not used -- with a compiled f/h the Rust core drops "
-    "every Jacobian (rust/src/python/nonlinear.rs point_function, 'cfunc' branch), with a Python "
-    "f/h it calls the cfunc as if it were a Python function",
-)
 @pytest.mark.parametrize("f, h", [(ct_c, radar_c), (ct, range_bearing)], ids=["compiled f and h", "python f and h"])
 def test_compiled_jacobians_are_used(f, h):
     Q, R, y, x0, P0 = ct_data()
@@ -370,11 +364,6 @@ def test_compiled_jacobians_are_used(f, h):
     assert_fields(model.ekf(y, x0, P0), want, rtol=1e-7, atol=1e-8)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kfast bug: with a compiled f or h, a Python jac_f/jac_h (and hess_f/hess_h) is silently "
-    "ignored: the Rust core takes differences instead (point_function's 'cfunc' branch)",
-)
 def test_python_jacobians_of_compiled_functions_are_used():
     Q, R, y, x0, P0 = ct_data()
     jac_f = lambda X, t, u: 1.01 * ct_jac(X, t, u)  # noqa: E731  (not the model's: using it shows)
@@ -383,7 +372,6 @@ def test_python_jacobians_of_compiled_functions_are_used():
     assert_fields(model.ekf(y, x0, P0), want, rtol=1e-7, atol=1e-8)
 
 
-@pytest.mark.xfail(strict=True, reason="kfast bug: with a compiled f, hess_f is silently ignored (as jac_f above)")
 def test_a_python_hessian_of_a_compiled_f_is_used():
     Q, R, y, x0, P0 = ct_data(T=30)
     hess_f = lambda X, t, u: np.full((len(X), 5, 5, 5), 1e-3)  # noqa: E731  (not the model's: using it shows)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Optional, cast
+from typing import Optional, Union, cast
 
 from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._args import choice, flag, index
-from kfast._typing import Form, Iteration
+from kfast._typing import Form, Iteration, UkfForm
 from kfast.linear.batch import BatchResult, batch_arguments
 from kfast.nonlinear.model import NonlinearModel
 from kfast.sigma import SigmaPoints
@@ -98,20 +98,22 @@ def ukf_batch(
     points: Optional[SigmaPoints] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
+    form: UkfForm = "standard",
 ) -> BatchResult:
     """The unscented Kalman filter of many independent series through one model, in parallel.
 
-    Each series is filtered exactly as ``model.ukf(Y[b], x0[b], P0[b], u[b], points)`` would
-    filter it alone; arguments, results and errors as for :func:`ekf_batch`.
+    Each series is filtered exactly as ``model.ukf(Y[b], x0[b], P0[b], u[b], points, form=form)``
+    would filter it alone; arguments, results and errors as for :func:`ekf_batch`.
 
     Parameters
     ----------
-    points : SigmaPoints, optional
-        As for :meth:`NonlinearModel.ukf` (``kfast.sigma.merwe()`` by default).
+    points, form : optional
+        As for :meth:`NonlinearModel.ukf` (``kfast.sigma.merwe()`` and "standard" by default).
     model, Y, x0, P0, u, return_covs, threads
         As for :func:`ekf_batch`.
     """
-    return _run(model, Y, x0, P0, u, return_covs, threads, "ukf", points)
+    form = cast(UkfForm, choice("form", form, ("standard", "sqrt")))
+    return _run(model, Y, x0, P0, u, return_covs, threads, "ukf", points, form)
 
 
 def _run(
@@ -124,7 +126,7 @@ def _run(
     threads: Optional[int],
     method: str,
     points: Optional[SigmaPoints],
-    form: Form = "joseph",
+    form: Union[Form, UkfForm] = "joseph",
     iterations: int = 0,
     iteration: Iteration = "book",
     order: int = 1,

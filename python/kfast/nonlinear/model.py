@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64, frozen_copy
-from kfast._typing import FilterOutputs, Form, Iteration
+from kfast._typing import FilterOutputs, Form, Iteration, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
 from kfast.sigma import SigmaPoints, merwe
 
@@ -73,7 +73,9 @@ class NonlinearModel:
     n : int
         The state size.
     jac_f, jac_h : callable, optional
-        Jacobians, batched like f and h: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n).
+        Jacobians, batched like f and h: ``jac_f(X, t, u)`` -> (k, n, n), ``jac_h`` -> (k, m, n)
+        (Python functions or compiled ones of ``C_SIGNATURE`` writing k x n x n or k x m x n
+        numbers, with f and h of either kind).
         Without them the EKF uses central differences, column j with step
         eps^(1/3) max(|x_j|, 1), all 2n points in one call of f or h.
     hess_f, hess_h : callable, optional
@@ -141,14 +143,15 @@ class NonlinearModel:
         self.n_obs: int = self.R.shape[-1]
         declared = tuple(angles) if not isinstance(h, BuiltinFunction) or angles else h.angles
         self.angles: tuple[int, ...] = _angles(declared, self.n_obs)
+        derivatives = {}
         for name, fn, what, given in (
             ("jac_f", f, "Jacobian", jac_f), ("jac_h", h, "Jacobian", jac_h),
             ("hess_f", f, "Hessians", hess_f), ("hess_h", h, "Hessians", hess_h),
         ):
-            if given is not None and not callable(given):
-                raise _kfast.KfastError(f"{name}: expected a callable, got {type(given).__name__}")
             if given is not None and isinstance(fn, BuiltinFunction):
                 raise _kfast.KfastError(f"{name}: the built-in {name[-1]} has its own {what}")
+            derivatives[name] = _derivative(name, given)
+        jac_f, jac_h, hess_f, hess_h = (derivatives[k] for k in ("jac_f", "jac_h", "hess_f", "hess_h"))
         self.f, self.h = f, h
         self.noise_input: bool = bool(noise_input)
         f_spec = _spec("f", f)
@@ -250,6 +253,7 @@ class NonlinearModel:
         u: Optional[ArrayLike] = None,
         points: Optional[SigmaPoints] = None,
         outputs: FilterOutputs = None,
+        form: UkfForm = "standard",
     ) -> FilterResult:
         """The unscented Kalman filter (Julier & Uhlmann 1997; Wan & van der Merwe 2000).
 
@@ -266,7 +270,17 @@ class NonlinearModel:
         ----------
         points : SigmaPoints, optional
             ``kfast.sigma.merwe(alpha=1e-3, beta=2, kappa=0)`` by default; or ``julier(kappa)``,
-            ``cubature()``.
+            ``cubature()``, ``custom(...)``.
+        form : {"standard", "sqrt"}
+            ``"standard"``: P(t|t) = P - K S K' (mirrored, exactly symmetric), each covariance
+            Cholesky-factored for its points. ``"sqrt"``: the square-root UKF (van der Merwe &
+            Wan 2001), which carries the lower factors L of P(t|t-1) and P(t|t) instead and
+            never factors a covariance: the time update takes L from a QR decomposition of the
+            weighted deviations sqrt(W_i) (f(X_i) - X_0) and Q's factor (a Cholesky downdate for a
+            negative weight), the update downdates L by the columns of K S^(1/2). The covariances
+            stay positive semidefinite by construction and a singular P0 is accepted; the
+            numbers equal the standard form's to rounding. (The Joseph form needs an H; the UKF
+            has none, and "sqrt" is its remedy for lost definiteness.)
         y, x0, P0, u, outputs
             As :meth:`ekf`.
 
@@ -274,11 +288,12 @@ class NonlinearModel:
         ------
         KfastError
             Also when P(t|t-1) or P(t|t) stops being positive definite (the message names the
-            step): there are then no sigma points.
+            step): there are then no sigma points -- use ``form="sqrt"``.
         """
         points = self._points(points)
         args = self._data(y, x0, P0, u)
-        out = self._core.ukf(*args[:3], self._outputs(outputs), points._spec(), u=args[3])
+        form = cast(UkfForm, choice("form", form, ("standard", "sqrt")))
+        out = self._core.ukf(*args[:3], self._outputs(outputs), points._spec(), u=args[3], form=form)
         return FilterResult(**out)
 
     def smooth(
@@ -291,13 +306,14 @@ class NonlinearModel:
         points: Optional[SigmaPoints] = None,
         iterations: int = 0,
         iteration: Iteration = "book",
-        form: Form = "joseph",
+        form: Optional[Union[Form, UkfForm]] = None,
         order: int = 1,
     ) -> SmootherResult:
         """The extended (``method="ekf"``) or unscented (``"ukf"``) RTS smoother.
 
-        The forward pass is :meth:`ekf` (with ``iterations``, ``iteration``, ``form``, ``order``) or
-        :meth:`ukf` (with ``points``), which also keeps C(t) = Cov(x(t), x(t+1) | y(0..t)):
+        The forward pass is :meth:`ekf` (with ``iterations``, ``iteration``, ``order`` and its
+        ``form``, "joseph" by default) or :meth:`ukf` (with ``points`` and its ``form``,
+        "standard" by default, or "sqrt"), which also keeps C(t) = Cov(x(t), x(t+1) | y(0..t)):
         P(t|t) F(t)' for the EKF (F at x(t|t)), the sigma points' cross-covariance for the UKF
         (Särkkä 2008). Then, for t = T-2 .. 0::
 
@@ -318,11 +334,11 @@ class NonlinearModel:
         """
         method = cast(str, choice("method", method, ("ekf", "ukf")))
         iteration = cast(Iteration, choice("iteration", iteration, ("book", "gauss-newton")))
-        form = cast(Form, choice("form", form, ("joseph", "standard")))
+        chosen = _form(method, form)
         points = self._points(points)
         args = self._data(y, x0, P0, u)
         out = self._core.smooth(
-            *args[:3], method, points._spec(), u=args[3], form=form, iterations=index("iterations", iterations),
+            *args[:3], method, points._spec(), u=args[3], form=chosen, iterations=index("iterations", iterations),
             iteration=iteration, order=index("order", order),
         )
         smoothed = {k: out.pop(k) for k in ("x_smooth", "P_smooth", "P_lag1")}
@@ -394,9 +410,32 @@ def _noise_as_input(f: Any, f_spec: Any, jac_f: Any, hess_f: Any, n: int, g: Any
         raise _kfast.KfastError("noise_input: a built-in f has additive noise; write f(X, W, t, u) as a function")
 
     def split(fn: Any) -> Any:
-        return None if fn is None else lambda Z, t, u: fn(Z[:, :n], Z[:, n:], t, u)
+        if fn is None or isinstance(fn, tuple):  # a compiled derivative takes the rows (x, w)
+            return fn
+        return lambda Z, t, u: fn(Z[:, :n], Z[:, n:], t, u)
 
     return split(f), split(jac_f), split(hess_f)
+
+
+def _form(method: str, form: Optional[str]) -> Any:
+    """The covariance form of the filter ``method``: the EKF's "joseph" (default) or "standard",
+    the UKF's "standard" (default) or "sqrt"."""
+    forms = ("joseph", "standard") if method == "ekf" else ("standard", "sqrt")
+    return forms[0] if form is None else cast(str, choice("form", form, forms))
+
+
+def _derivative(name: str, given: Any) -> Any:
+    """A Jacobian or Hessians as the compiled model takes them: a Python callable, or
+    ("cfunc", address) for a compiled function of ``C_SIGNATURE`` (its out holding k x m x n,
+    or k x m x n x n, numbers)."""
+    if given is None:
+        return None
+    address = _compiled_address(name, given)
+    if address is not None:
+        return ("cfunc", address)
+    if not callable(given):
+        raise _kfast.KfastError(f"{name}: expected a callable or a compiled function, got {type(given).__name__}")
+    return given
 
 
 def _noise_gain(g: Any, n: int, r: int) -> Any:

@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64
-from kfast._typing import Form, Iteration
+from kfast._typing import Form, Iteration, UkfForm
 from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _spec
 from kfast.sigma import SigmaPoints, merwe
 
@@ -127,13 +127,22 @@ class ExtendedKalmanFilter(_Streaming):
 class UnscentedKalmanFilter(_Streaming):
     """The UKF of a :class:`kfast.NonlinearModel` one measurement at a time, from the prior
     (x0, P0) = x(0|-1), P(0|-1), with the sigma points ``points`` (``kfast.sigma.merwe()`` by
-    default). The same steps give the numbers of :meth:`NonlinearModel.ukf`."""
+    default) and the covariance ``form`` ("standard", or "sqrt": the square-root UKF). The same
+    steps give the numbers of :meth:`NonlinearModel.ukf`."""
 
-    def __init__(self, model: NonlinearModel, x0: ArrayLike, P0: ArrayLike, points: Optional[SigmaPoints] = None) -> None:
+    def __init__(
+        self,
+        model: NonlinearModel,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        points: Optional[SigmaPoints] = None,
+        form: UkfForm = "standard",
+    ) -> None:
         self._model = _model(model)
         points = model._points(points)
         x, P = model._prior(x0, P0)
-        self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec())
+        form = cast(UkfForm, choice("form", form, ("standard", "sqrt")))
+        self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec(), form=form)
 
 
 def _model(model: Any) -> NonlinearModel:

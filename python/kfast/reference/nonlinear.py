@@ -368,7 +368,10 @@ class CustomPoints:
         return 1.0, self.Wm, self.Wc
 
     def points(self, x, P):
-        return x + self.unit @ np.linalg.cholesky(P).T
+        return self.points_of_factor(x, np.linalg.cholesky(P))
+
+    def points_of_factor(self, x, L):
+        return x + self.unit @ L.T
 
 
 def _unscented_moments(X, Z, Wm, Wc, angles=(), centred=None):
@@ -402,7 +405,53 @@ def _unscented_moments(X, Z, Wm, Wc, angles=(), centred=None):
     return Z[0] + d, cov, cross
 
 
-def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False):
+def tria(A):
+    """The lower-triangular L with non-negative diagonal and L L' = A A' (A of shape (n, c),
+    c >= n), from the QR decomposition of A'."""
+    L = np.linalg.qr(A.T, mode="r").T[:, : len(A)]
+    return L * np.where(np.diag(L) < 0, -1.0, 1.0)
+
+
+def cholesky_downdate(L, x):
+    """The lower factor of L L' - x x' (a hyperbolic rotation per pivot); raises if the
+    difference is not positive definite."""
+    L, x = L.copy(), np.asarray(x, dtype=float).copy()
+    for j in range(len(x)):
+        if x[j] == 0:
+            continue
+        r2 = L[j, j] ** 2 - x[j] ** 2
+        if not r2 > 0:
+            raise np.linalg.LinAlgError(f"downdate: pivot {j} lost")
+        r = np.sqrt(r2)
+        c, s = r / L[j, j], x[j] / L[j, j]
+        L[j, j] = r
+        L[j + 1 :, j] = (L[j + 1 :, j] - s * x[j + 1 :]) / c
+        x[j + 1 :] = c * x[j + 1 :] - s * L[j + 1 :, j]
+    return L
+
+
+def _sqrt_covariance(Z, Wm, Wc, centred, extra=None):
+    """The lower factor of the unscented covariance of the points Z (plus extra @ extra'): QR of
+    the positively weighted deviations of _unscented_moments' sums, a downdate for each
+    negative weight."""
+    if centred:
+        W = Wm[1:]
+        D = Z[1:] - Z[0]
+        d = W @ D
+        terms = list(zip(W, D)) + [(Wc[0] - Wm[0] - 1, d)]
+    else:
+        terms = list(zip(Wc, Z - Wm @ Z))
+    cols = [np.sqrt(w) * v for w, v in terms if w > 0]
+    if extra is not None:
+        cols += list(extra.T)
+    L = tria(np.array(cols).T)
+    for w, v in terms:
+        if w < 0:
+            L = cholesky_downdate(L, np.sqrt(-w) * v)
+    return L
+
+
+def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False, form="standard"):
     """The unscented Kalman filter (Julier & Uhlmann 1997; Wan & van der Merwe 2000).
 
     Update at t from points of (x(t|t-1), P(t|t-1)) (redrawn after the time update, as filterpy
@@ -410,6 +459,11 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_inp
     With ``noise_input`` the time update's points are those of the augmented (x(t|t), 0),
     diag(P(t|t), Q) -- factor diag(chol P, psd_cholesky Q), weights of dimension n + r -- through
     f(x, w), and no Q is added.
+
+    ``form="sqrt"``: the square-root UKF (van der Merwe & Wan 2001). The lower factors L of
+    P(t|t-1) and P(t|t) are carried (L(0|-1) = psd_cholesky(P0)) and the points placed from
+    them; P(t+1|t)'s factor is tria of the weighted deviations (and Q's factor), with downdates
+    for negative weights; P(t|t)'s is L(t|t-1) downdated by the columns of C chol(S)'^-1.
     """
     points = points or merwe()
     y = np.asarray(y, dtype=float)
@@ -420,11 +474,15 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_inp
     out["D"] = np.zeros((T, n, n))
     x = np.asarray(x0, dtype=float).copy()
     P = np.asarray(P0, dtype=float).copy()
+    sqrt = form == "sqrt"
+    L = psd_cholesky(P) if sqrt else None
+    centred = getattr(points, "centred", None)
+    centred = len(Wm) % 2 == 1 if centred is None else centred
     for t in range(T):
         ut = None if u is None else np.asarray(u[t], dtype=float)
         Rt = _at(R, t)
         out["x_pred"][t], out["P_pred"][t] = x, P
-        X = points.points(x, P)
+        X = points.points_of_factor(x, L) if sqrt else points.points(x, P)
         Y = np.asarray(h(X, t, ut), dtype=float)
         y_hat, S_full, C_full = _unscented_moments(X, Y, Wm, Wc, angles, getattr(points, "centred", None))
         S_full = S_full + Rt
@@ -436,26 +494,37 @@ def ukf(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_inp
             x_filt, P_filt, K, ll = _update(x, P, e_full[o], C_full[:, o], S)
             out["K"][t][:, o] = K
             out["loglik_t"][t] = ll
+            if sqrt:
+                U = np.linalg.solve(np.linalg.cholesky(S), C_full[:, o].T).T  # K S^(1/2)
+                L_filt = L
+                for col in U.T:
+                    L_filt = cholesky_downdate(L_filt, col)
+                P_filt = L_filt @ L_filt.T
         else:
-            x_filt, P_filt = x, P
+            x_filt, P_filt, L_filt = x, P, L
         out["x_filt"][t], out["P_filt"][t] = x_filt, P_filt
+        L_now = L_filt if sqrt else np.linalg.cholesky(P_filt)
         if noise_input:
             Qt = _at(Q, t)
             r = len(Qt)
-            L = _block_diag(np.linalg.cholesky(P_filt), psd_cholesky(Qt))
-            Xa = points.points_of_factor(np.concatenate([x_filt, np.zeros(r)]), L)
+            Xa = points.points_of_factor(np.concatenate([x_filt, np.zeros(r)]), _block_diag(L_now, psd_cholesky(Qt)))
             _, Wm_a, Wc_a = points.weights(n + r)
             propagated = np.asarray(f(Xa[:, :n], Xa[:, n:], t, ut), dtype=float)
             x, P, D = _unscented_moments(Xa, propagated, Wm_a, Wc_a)
             out["D"][t] = D[:n]  # the state rows of Cov((x, w), x(t+1))
+            if sqrt:
+                L = _sqrt_covariance(propagated, Wm_a, Wc_a, centred)
         else:
-            Xf = points.points(x_filt, P_filt)
+            Xf = points.points_of_factor(x_filt, L_now)
             propagated = np.asarray(f(Xf, t, ut), dtype=float)
             x, P, D = _unscented_moments(Xf, propagated, Wm, Wc, centred=getattr(points, "centred", None))
             # D = Cov(x(t), x(t+1)): the unscented smoother's cross-covariance (Särkkä 2008)
             out["D"][t] = D
-            P = P + _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
-        P = (P + P.T) / 2
+            noise = _noise_cov(g, _at(Q, t), x_filt, n, t, ut)
+            P = P + noise
+            if sqrt:
+                L = _sqrt_covariance(propagated, Wm, Wc, centred, psd_cholesky(noise))
+        P = L @ L.T if sqrt else (P + P.T) / 2
     out["loglik"] = float(out["loglik_t"].sum())
     out["x_next"], out["P_next"] = x, P
     return out
@@ -500,9 +569,9 @@ def extended_rts(
     return xs, Ps, filt
 
 
-def unscented_rts(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False):
+def unscented_rts(f, h, Q, R, y, x0, P0, points=None, u=None, g=None, angles=(), noise_input=False, form="standard"):
     """Unscented RTS smoother (Särkkä 2008): J(t) = D(t) P(t+1|t)^-1 with the forward pass's
     cross-covariance D(t) of x(t|t) and x(t+1|t). Returns (x_smooth, P_smooth, filter dict)."""
-    filt = ukf(f, h, Q, R, y, x0, P0, points=points, u=u, g=g, angles=angles, noise_input=noise_input)
+    filt = ukf(f, h, Q, R, y, x0, P0, points=points, u=u, g=g, angles=angles, noise_input=noise_input, form=form)
     xs, Ps = _rts(filt, lambda t: filt["D"][t])
     return xs, Ps, filt

@@ -6,9 +6,8 @@
 //! the GIL at each call of f or h, so its series run one after another
 //! ([`PointFunction::parallel`](super::PointFunction::parallel)).
 
-use super::filter::{ekf_into, ukf_into, EkfOptions};
+use super::filter::{ekf_into, ukf_into, EkfOptions, UkfOptions};
 use super::model::NonlinearModel;
-use super::sigma::SigmaPoints;
 use crate::core::batch::par::{self, *};
 use crate::core::batch::{prefix_series, thread_count, Batch, BatchOutputs, SeriesSizes};
 use crate::core::Series;
@@ -31,16 +30,16 @@ pub fn ekf_batch(
     run_batch(model, batch, out, threads, |y, u, x0, p0, o| ekf_into(model, y, u, x0, p0, options, o))
 }
 
-/// The unscented Kalman filter ([`ukf_into`] with `points`) of every series of `batch`; as
+/// The unscented Kalman filter ([`ukf_into`] with `options`) of every series of `batch`; as
 /// [`ekf_batch`] otherwise.
 pub fn ukf_batch(
     model: &NonlinearModel,
     batch: Batch<'_>,
-    points: SigmaPoints,
+    options: UkfOptions,
     out: BatchOutputs<'_>,
     threads: Option<usize>,
 ) -> Result<()> {
-    run_batch(model, batch, out, threads, |y, u, x0, p0, o| ukf_into(model, y, u, x0, p0, points.clone(), o))
+    run_batch(model, batch, out, threads, |y, u, x0, p0, o| ukf_into(model, y, u, x0, p0, options.clone(), o))
 }
 
 fn run_batch(

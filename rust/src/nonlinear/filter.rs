@@ -17,6 +17,7 @@
 use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angle, Differences, PointFunction};
 use super::model::{NoiseScratch, NonlinearModel, Transition};
 use super::sigma::{cholesky, place, semidefinite_cholesky, unscented_transform, SigmaPoints, Transformed, Weights};
+use super::square_root::{downdate, tria};
 use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize};
 use crate::core::dims::Dyn;
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
@@ -50,6 +51,38 @@ pub struct EkfOptions {
     /// second differences; the covariances stay the EKF's (the book corrects means only).
     /// Not with `iterations > 0`.
     pub second_order: bool,
+}
+
+/// How the UKF carries its covariance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UkfForm {
+    /// `P(t|t) = P − K S K'` (mirrored, so exactly symmetric), and a Cholesky factor of each
+    /// covariance for its sigma points: fails, naming the step, when one is not positive
+    /// definite to working precision.
+    #[default]
+    Standard,
+    /// The square-root UKF (van der Merwe & Wan 2001): the lower factors of P(t|t−1) and
+    /// P(t|t) are carried instead and never re-factored. The time update takes the factor of
+    /// `Σ Wᵢ Dᵢ Dᵢ' (+ Q)` by a QR decomposition of the weighted deviations (and Q's factor),
+    /// with Cholesky downdates for negative weights; the measurement update downdates the
+    /// factor by the columns of `K S^(1/2) = C S^(−1/2)'`. P(t|t−1) and P(t|t) stay positive
+    /// semidefinite by construction, and a singular P0 is accepted.
+    SquareRoot,
+}
+
+/// Options of [`ukf_into`]: the sigma points and the covariance form.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UkfOptions {
+    /// The sigma-point set.
+    pub points: SigmaPoints,
+    /// The covariance form.
+    pub form: UkfForm,
+}
+
+impl From<SigmaPoints> for UkfOptions {
+    fn from(points: SigmaPoints) -> Self {
+        UkfOptions { points, form: UkfForm::Standard }
+    }
 }
 
 /// The extended Kalman filter over the series `y` (T × m) from the prior (x0, P0) = x(0|−1),
@@ -86,20 +119,20 @@ pub(crate) fn ekf_run(
     run(model, y, u, steps, filter, out, cross)
 }
 
-/// The unscented Kalman filter over the series `y` with the sigma-point set `points`; as
-/// [`ekf_into`] otherwise (the standard form P − K S K' of the update, the only one that
-/// applies without an H). Fails, naming the step, when P(t|t−1) or P(t|t) stops being
-/// positive definite (no square root, so no sigma points).
+/// The unscented Kalman filter over the series `y` with the sigma points and covariance form of
+/// `options`; as [`ekf_into`] otherwise. The standard form fails, naming the step, when P(t|t−1)
+/// or P(t|t) stops being positive definite (no Cholesky factor, so no sigma points); the
+/// square-root form ([`UkfForm::SquareRoot`]) carries the factors instead.
 pub fn ukf_into(
     model: &NonlinearModel,
     y: Series<'_>,
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    points: SigmaPoints,
+    options: UkfOptions,
     out: FilterOutputs<'_>,
 ) -> Result<f64> {
-    ukf_run(model, y, u, x0, p0, points, out, None)
+    ukf_run(model, y, u, x0, p0, options, out, None)
 }
 
 /// [`ukf_into`], also storing the sigma points' `Cov(x(t), x(t+1) | y(0..t))` (T × n × n) in
@@ -111,12 +144,12 @@ pub(crate) fn ukf_run(
     u: Option<Series<'_>>,
     x0: &[f64],
     p0: &[f64],
-    points: SigmaPoints,
+    options: UkfOptions,
     out: FilterOutputs<'_>,
     cross: Option<&mut [f64]>,
 ) -> Result<f64> {
     let steps = model.check_run(y, u, x0, p0)?;
-    let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points, model.noise_inputs())?;
+    let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, options, model.noise_inputs())?;
     run(model, y, u, steps, filter, out, cross)
 }
 
@@ -361,9 +394,12 @@ pub(crate) struct Ukf {
     /// The points of x̂(t|t), P(t|t) through f -- with noise inputs, of the augmented
     /// (x̂(t|t), 0), diag(P(t|t), Q).
     predict_pts: PointSet,
-    /// The augmented centre (x̂(t|t), 0) and the lower factor of Q.
+    /// The augmented centre (x̂(t|t), 0) and the lower factor of Q (r × r; n × n in the
+    /// square-root form without noise inputs, where Q's columns join the QR).
     centre: Vec<f64>,
     q_factor: Vec<f64>,
+    /// The square-root form's scratch.
+    sqrt: Option<SqrtScratch>,
 }
 
 /// A sigma-point set for one dimension d, mapped to `out` numbers per point, with its scratch.
@@ -388,11 +424,21 @@ impl PointSet {
     }
 }
 
+/// The square-root UKF's scratch: the weighted deviations (n × columns) for the QR, its
+/// Householder vector, a downdate vector, and K S^(1/2) with S's factor.
+struct SqrtScratch {
+    columns: Vec<f64>,
+    reflector: Vec<f64>,
+    vector: Vec<f64>,
+    gain_root: Vec<f64>,
+    s_factor: Vec<f64>,
+}
+
 impl Ukf {
     /// The UKF for n states and m outputs; with `noise_inputs` r > 0, f takes (x, w) and the
     /// time update places points of the augmented n + r numbers.
-    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], points: SigmaPoints, noise_inputs: usize) -> Result<Self> {
-        let r = noise_inputs;
+    pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], options: UkfOptions, noise_inputs: usize) -> Result<Self> {
+        let (points, r) = (options.points, noise_inputs);
         points.validate(n)?;
         if r > 0 {
             if let SigmaPoints::Custom(_) = points {
@@ -407,12 +453,30 @@ impl Ukf {
             }
             points.validate(n + r)?;
         }
+        let mut ws = Step::new(n, m, x0, p0);
+        let sqrt = (options.form == UkfForm::SquareRoot).then(|| {
+            // the factor of P0, which may be singular
+            let mut pred = vec![0.0; n * n];
+            semidefinite_cholesky(&mut pred, p0, n);
+            ws.factors = Some(Factors { filt: pred.clone(), pred });
+            // columns: every point's deviation and the centre's term, and Q's n columns
+            let cols = points.count(n + r) + 1 + n;
+            SqrtScratch {
+                columns: vec![0.0; n * cols],
+                reflector: vec![0.0; cols],
+                vector: vec![0.0; n],
+                gain_root: vec![0.0; n * m],
+                s_factor: vec![0.0; m * m],
+            }
+        });
+        let q_size = if r == 0 && sqrt.is_some() { n } else { r };
         Ok(Ukf {
-            ws: Step::new(n, m, x0, p0),
+            ws,
             update_pts: PointSet::new(&points, n, m),
             predict_pts: PointSet::new(&points, n + r, n),
             centre: vec![0.0; n + r],
-            q_factor: vec![0.0; r * r],
+            q_factor: vec![0.0; q_size * q_size],
+            sqrt,
         })
     }
 }
@@ -436,9 +500,19 @@ impl GaussianFilter for Ukf {
         if self.ws.fit(m) {
             self.update_pts.images.resize(k * m, 0.0);
             self.update_pts.through = Transformed::new(k, n, m);
+            if let Some(sq) = &mut self.sqrt {
+                sq.gain_root.resize(n * m, 0.0);
+                sq.s_factor.resize(m * m, 0.0);
+            }
         }
-        let Ukf { ws, update_pts: PointSet { weights, factor, sigma, images, through }, .. } = self;
-        square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
+        let Ukf { ws, update_pts: PointSet { weights, factor, sigma, images, through }, sqrt, .. } = self;
+        let factor: &[f64] = match &ws.factors {
+            Some(f) => &f.pred,
+            None => {
+                square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
+                factor
+            }
+        };
         place(weights, &ws.x, factor, sigma);
         evaluate(sensor.h, "h", sigma, k, t, u, images)?;
         unscented_transform(weights, sigma, images, sensor.angles, true, through);
@@ -452,7 +526,11 @@ impl GaussianFilter for Ukf {
             return Ok(());
         }
         ws.gather(sensor, None);
-        ws.update(UpdateForm::Standard, t)
+        ws.update(UpdateForm::Standard, t)?;
+        if let Some(sq) = sqrt {
+            ws.downdate_factor(sq, t)?;
+        }
+        Ok(())
     }
 
     fn predict(
@@ -462,21 +540,34 @@ impl GaussianFilter for Ukf {
         u: Option<&[f64]>,
         cross: Option<&mut [f64]>,
     ) -> Result<()> {
-        let Ukf { ws, update_pts, predict_pts, centre, q_factor } = self;
+        let Ukf { ws, update_pts, predict_pts, centre, q_factor, sqrt } = self;
         let PointSet { weights, factor, sigma, images, through } = predict_pts;
         let (n, r, k) = (ws.n, transition.noise_inputs, weights.mean.len());
+        // the factor of P(t|t): carried in the square-root form, else by Cholesky
         if r == 0 {
-            square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
-            place(weights, &ws.x_filt, factor, sigma);
+            let l_filt: &[f64] = match &ws.factors {
+                Some(f) => &f.filt,
+                None => {
+                    square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
+                    factor
+                }
+            };
+            place(weights, &ws.x_filt, l_filt, sigma);
         } else {
+            let l_filt: &[f64] = match &ws.factors {
+                Some(f) => &f.filt,
+                None => {
+                    square_root(&mut update_pts.factor, &ws.p_filt, n, "P(t|t)", t)?;
+                    &update_pts.factor
+                }
+            };
             // the augmented (x̂(t|t), 0) with the factor diag(L, L_Q) of diag(P(t|t), Q); Q may
             // be singular (its factor then has zero columns)
             let na = n + r;
-            square_root(&mut update_pts.factor, &ws.p_filt, n, "P(t|t)", t)?;
             semidefinite_cholesky(q_factor, transition.q, r);
             factor.fill(0.0);
             for i in 0..n {
-                factor[i * na..][..n].copy_from_slice(&update_pts.factor[i * n..][..n]);
+                factor[i * na..][..n].copy_from_slice(&l_filt[i * n..][..n]);
             }
             for i in 0..r {
                 factor[(n + i) * na + n..][..r].copy_from_slice(&q_factor[i * r..][..r]);
@@ -487,13 +578,24 @@ impl GaussianFilter for Ukf {
         evaluate(transition.f, "f", sigma, k, t, u, images)?;
         unscented_transform(weights, sigma, images, &[], cross.is_some(), through);
         ws.x.copy_from_slice(&through.mean);
-        ws.p.copy_from_slice(&through.cov);
         if let Some(c) = cross {
             // Cov(x(t), x(t+1)): the state rows of the (augmented) points' cross-covariance
             c.copy_from_slice(&through.cross[..n * n]);
         }
-        if r == 0 {
-            ws.add_process_noise(transition.q);
+        match sqrt {
+            None => {
+                ws.p.copy_from_slice(&through.cov);
+                if r == 0 {
+                    ws.add_process_noise(transition.q);
+                }
+            }
+            Some(sq) => {
+                let q = (r == 0).then(|| {
+                    semidefinite_cholesky(q_factor, transition.q, n);
+                    &q_factor[..]
+                });
+                ws.predict_factor(sq, weights, through, q, t)?;
+            }
         }
         Ok(())
     }
@@ -616,6 +718,15 @@ pub(crate) struct Step {
     gain: Vec<f64>,
     fp: Vec<f64>,
     gauss: GaussianUpdate<Dyn>,
+    /// The lower factors of P(t|t−1) and P(t|t), carried by the square-root UKF.
+    factors: Option<Factors>,
+}
+
+/// The lower Cholesky factors the square-root UKF carries beside P(t|t−1) and P(t|t).
+#[derive(Clone)]
+struct Factors {
+    pred: Vec<f64>,
+    filt: Vec<f64>,
 }
 
 impl Step {
@@ -641,7 +752,108 @@ impl Step {
             gain: vec![0.0; n * m],
             fp: vec![0.0; n * n],
             gauss: GaussianUpdate::new(Dyn { n, m }),
+            factors: None,
         }
+    }
+
+    /// The square-root update of P(t|t)'s factor after [`update`](Self::update) (which gave
+    /// x̂(t|t), K and the log-likelihood term): `L(t|t) L(t|t)' = L L' − U U'` with
+    /// `U = C S^(−1/2)'` (= K S^(1/2)), one Cholesky downdate per observed component; P(t|t)
+    /// is then `L(t|t) L(t|t)'`.
+    fn downdate_factor(&mut self, sq: &mut SqrtScratch, t: usize) -> Result<()> {
+        let (n, mo) = (self.n, self.observed.len());
+        let Step { c_obs, s_obs, p_filt, factors, .. } = self;
+        let Some(factors) = factors else { return Ok(()) };
+        let SqrtScratch { gain_root, s_factor, vector, .. } = sq;
+        cholesky(s_factor, &s_obs[..mo * mo], mo).map_err(|j| Error::NotPositiveDefinite {
+            what: "S",
+            step: t,
+            problem: format!("pivot {j} of its Cholesky factor is not positive"),
+        })?;
+        // each row of U solves L_S u' = c' (forward substitution)
+        for i in 0..n {
+            for a in 0..mo {
+                let mut v = c_obs[i * mo + a];
+                for b in 0..a {
+                    v -= s_factor[a * mo + b] * gain_root[i * mo + b];
+                }
+                gain_root[i * mo + a] = v / s_factor[a * mo + a];
+            }
+        }
+        factors.filt.copy_from_slice(&factors.pred);
+        for a in 0..mo {
+            for i in 0..n {
+                vector[i] = gain_root[i * mo + a];
+            }
+            downdate(&mut factors.filt, vector, n).map_err(|j| Error::NotPositiveDefinite {
+                what: "P(t|t)",
+                step: t,
+                problem: format!(
+                    "the square-root update's Cholesky downdate lost pivot {j}: P(t|t) = P(t|t-1) - K S K' \
+                     is not positive definite to working precision (check R and the scale of P)"
+                ),
+            })?;
+        }
+        mul_bt_sym::<Dyn>(p_filt, &factors.filt, &factors.filt, n, n);
+        Ok(())
+    }
+
+    /// The square-root time update of P(t+1|t)'s factor from the transform of the points:
+    /// `L L' = Σ Wᵢ Dᵢ Dᵢ' + (W⁰꜀ − W⁰ₘ − 1) d d' (+ L_Q L_Q')` (the transform's centred sums), by
+    /// QR of the columns with positive weights and a downdate for each negative one.
+    fn predict_factor(
+        &mut self,
+        sq: &mut SqrtScratch,
+        w: &Weights,
+        through: &Transformed,
+        q_factor: Option<&[f64]>,
+        t: usize,
+    ) -> Result<()> {
+        let n = self.n;
+        let Step { p, factors, .. } = self;
+        let Some(factors) = factors else { return Ok(()) };
+        let (dev, d) = through.deviations();
+        let first = usize::from(w.centre);
+        let cov_weights = w.cov.as_deref().unwrap_or(&w.mean);
+        let centre_weight = if w.centre { w.centre_excess - 1.0 } else { 0.0 };
+        // (weight, vector) of every term, weights as in the transform
+        let terms = (first..cov_weights.len())
+            .map(|i| (cov_weights[i], &dev[i * n..][..n]))
+            .chain(std::iter::once((centre_weight, d)));
+        let cols = sq.reflector.len();
+        let SqrtScratch { columns, reflector, vector, .. } = sq;
+        columns.fill(0.0);
+        let mut c = 0;
+        for (wi, v) in terms.clone().filter(|(wi, _)| *wi > 0.0) {
+            let s = wi.sqrt();
+            for i in 0..n {
+                columns[i * cols + c] = s * v[i];
+            }
+            c += 1;
+        }
+        if let Some(lq) = q_factor {
+            for i in 0..n {
+                columns[i * cols + c..][..n].copy_from_slice(&lq[i * n..][..n]);
+            }
+        }
+        tria(columns, n, cols, reflector, &mut factors.pred);
+        for (wi, v) in terms.filter(|(wi, _)| *wi < 0.0) {
+            let s = (-wi).sqrt();
+            for i in 0..n {
+                vector[i] = s * v[i];
+            }
+            downdate(&mut factors.pred, vector, n).map_err(|j| Error::NotPositiveDefinite {
+                what: "P(t|t-1)",
+                step: t + 1,
+                problem: format!(
+                    "the square-root time update's downdate (a negative sigma-point weight) lost pivot {j}: \
+                     the points' covariance is not positive definite (use Merwe points with beta >= alpha^2, \
+                     or cubature points, whose weights are all positive)"
+                ),
+            })?;
+        }
+        mul_bt_sym::<Dyn>(p, &factors.pred, &factors.pred, n, n);
+        Ok(())
     }
 
     /// For a linearized measurement (EKF): C = P H' and S = H P H' + R for all components.
@@ -744,13 +956,20 @@ impl Step {
     /// Makes x̂(t|t), P(t|t) the prior of the next update (`to_prior`), or the prediction the
     /// filtered state (a time update with no update before it).
     pub(crate) fn carry(&mut self, to_prior: bool) {
-        let Step { x, p, x_filt, p_filt, .. } = self;
+        let Step { x, p, x_filt, p_filt, factors, .. } = self;
         if to_prior {
             x.copy_from_slice(x_filt);
             p.copy_from_slice(p_filt);
         } else {
             x_filt.copy_from_slice(x);
             p_filt.copy_from_slice(p);
+        }
+        if let Some(Factors { pred, filt }) = factors {
+            if to_prior {
+                pred.copy_from_slice(filt);
+            } else {
+                filt.copy_from_slice(pred);
+            }
         }
     }
 
@@ -766,14 +985,17 @@ impl Step {
             return false;
         }
         let fresh = Step::new(self.n, m, &self.x, &self.p);
-        let Step { x, p, x_filt, p_filt, fp, .. } = std::mem::replace(self, fresh);
-        (self.x, self.p, self.x_filt, self.p_filt, self.fp) = (x, p, x_filt, p_filt, fp);
+        let Step { x, p, x_filt, p_filt, fp, factors, .. } = std::mem::replace(self, fresh);
+        (self.x, self.p, self.x_filt, self.p_filt, self.fp, self.factors) = (x, p, x_filt, p_filt, fp, factors);
         true
     }
 
     fn skip_update(&mut self) {
         self.x_filt.copy_from_slice(&self.x);
         self.p_filt.copy_from_slice(&self.p);
+        if let Some(Factors { pred, filt }) = &mut self.factors {
+            filt.copy_from_slice(pred);
+        }
         self.gain.fill(0.0);
         self.gauss.skip();
     }

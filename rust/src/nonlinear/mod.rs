@@ -21,10 +21,11 @@ mod model;
 pub mod models;
 mod sigma;
 mod smoother;
+mod square_root;
 mod streaming;
 
 pub use batch::{ekf_batch, ukf_batch};
-pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor};
+pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor, UkfForm, UkfOptions};
 pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use model::NonlinearModel;
 pub use sigma::{CustomPoints, SigmaPoints};

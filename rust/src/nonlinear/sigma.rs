@@ -312,6 +312,14 @@ pub(crate) struct Transformed {
 }
 
 impl Transformed {
+    /// The deviations Dᵢ of the transformed points (k × r; from the centre point, or from the
+    /// mean for a set without one) and `d = Σ Wᵢ Dᵢ` (i ≥ 1 with a centre), as the last
+    /// transform left them: `Cov(z) = Σ W꜀ᵢ Dᵢ Dᵢ' + (W⁰꜀ − W⁰ₘ − 1) d d'` (the last term with a
+    /// centre only).
+    pub fn deviations(&self) -> (&[f64], &[f64]) {
+        (&self.dev, &self.d)
+    }
+
     pub fn new(points: usize, n: usize, r: usize) -> Self {
         Transformed {
             mean: vec![0.0; r],

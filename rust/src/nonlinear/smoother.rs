@@ -9,9 +9,8 @@
 //! P_lag1(t+1) = P(t+1|T−1) J(t)'        (Cov(x(t+1), x(t) | all data))
 //! ```
 
-use super::filter::{ekf_run, ukf_run, EkfOptions};
+use super::filter::{ekf_run, ukf_run, EkfOptions, UkfOptions};
 use super::model::NonlinearModel;
-use super::sigma::SigmaPoints;
 use crate::core::dense::{ldl, ldl_solve, mul, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::Dyn;
 use crate::core::Series;
@@ -24,8 +23,8 @@ use crate::linear::smoother::SmoothOutputs;
 pub enum SmoothMethod {
     /// The EKF (extended RTS).
     Ekf(EkfOptions),
-    /// The UKF with these sigma points (unscented RTS).
-    Ukf(SigmaPoints),
+    /// The UKF with these sigma points and form (unscented RTS).
+    Ukf(UkfOptions),
 }
 
 /// The smoother over the series `y` from the prior x(0|−1): the forward filter's outputs into
@@ -47,7 +46,7 @@ pub fn smooth_nonlinear_into(
     let mut cross = vec![0.0; steps * n * n];
     let loglik = match method {
         SmoothMethod::Ekf(options) => ekf_run(model, y, u, x0, p0, options, filt.reborrow(), Some(&mut cross))?,
-        SmoothMethod::Ukf(points) => ukf_run(model, y, u, x0, p0, points, filt.reborrow(), Some(&mut cross))?,
+        SmoothMethod::Ukf(options) => ukf_run(model, y, u, x0, p0, options, filt.reborrow(), Some(&mut cross))?,
     };
     let x_pred = need("x_pred", filt.x_pred)?;
     let p_pred = need("P_pred", filt.p_pred)?;

@@ -2,9 +2,8 @@
 
 use std::sync::Arc;
 
-use super::filter::{Ekf, EkfOptions, GaussianFilter, Sensor, Ukf};
+use super::filter::{Ekf, EkfOptions, GaussianFilter, Sensor, Ukf, UkfOptions};
 use super::model::{NoiseScratch, NonlinearModel};
-use super::sigma::SigmaPoints;
 use crate::core::validate::{check_input_row, check_observation, check_prior, check_psd, check_symmetric};
 use crate::error::{Error, Result};
 
@@ -31,10 +30,10 @@ impl NonlinearKalmanFilter {
         Ok(Self::of(model, Box::new(filter)))
     }
 
-    /// The UKF (with the sigma points `points`) from the prior (x0, P0).
-    pub fn ukf(model: Arc<NonlinearModel>, x0: &[f64], p0: &[f64], points: SigmaPoints) -> Result<Self> {
+    /// The UKF (with the sigma points and form of `options`) from the prior (x0, P0).
+    pub fn ukf(model: Arc<NonlinearModel>, x0: &[f64], p0: &[f64], options: UkfOptions) -> Result<Self> {
         check_prior(model.n_states(), x0, p0)?;
-        let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, points, model.noise_inputs())?;
+        let filter = Ukf::new(model.n_states(), model.n_obs(), x0, p0, options, model.noise_inputs())?;
         Ok(Self::of(model, Box::new(filter)))
     }
 

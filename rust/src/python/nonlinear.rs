@@ -15,31 +15,63 @@ use crate::linear::model::StepMatrix;
 use crate::nonlinear::models::{Bearing, CoordinatedTurn, RangeBearing, RangeBearingElevation, Ungm};
 use crate::nonlinear::{
     self, ConstantMap, CustomPoints, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod,
+    UkfForm, UkfOptions,
 };
 
 type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 
-/// A Python callable `fn(X, t, u)` with X of shape (k, n), returning (k, dim_out) (and its
-/// Jacobian callable, returning (k, dim_out, n), if given). Called with the GIL taken for the
-/// call; the filters run without it.
-struct PyFunction {
+/// A user's function of a batch of points: a Python callable `fn(X, t, u)` (X of shape (k, n),
+/// called with the GIL taken for the call; the filters run without it), or a compiled function
+/// of the signature [`CFn`] (a numba `@cfunc`, a `scipy.LowLevelCallable` or a ctypes pointer,
+/// its signature checked in Python before its address gets here), called directly.
+enum Callee {
+    Python(Py<PyAny>),
+    C(CFn),
+}
+
+/// The C signature of a compiled function: `void f(const double *X, intptr_t k, intptr_t n,
+/// int64_t t, const double *u, double *out)` — the k points X (k × n, row-major), the step t,
+/// the input row u (NULL without inputs) and the k results (k × the numbers per point).
+type CFn = unsafe extern "C" fn(*const f64, isize, isize, i64, *const f64, *mut f64);
+
+impl Callee {
+    /// `callable` from Python: a function, or `("cfunc", address)` for a compiled one.
+    fn of(name: &str, callable: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(tuple) = callable.cast::<PyTuple>() {
+            let (kind, address): (String, usize) = tuple.extract()?;
+            if kind != "cfunc" || address == 0 {
+                return Err(KfastError::new_err(format!("{name}: expected a callable or a compiled function")));
+            }
+            // SAFETY: a non-null address of a function of the signature CFn (checked in
+            // Python, kfast.nonlinear.model._compiled_address).
+            return Ok(Callee::C(unsafe { std::mem::transmute::<usize, CFn>(address) }));
+        }
+        if !callable.is_callable() {
+            return Err(KfastError::new_err(format!("{name}: expected a callable {name}(X, t, u)")));
+        }
+        Ok(Callee::Python(callable.clone().unbind()))
+    }
+}
+
+/// f, h or g given by the user, with its Jacobian and Hessians if given (each a [`Callee`]).
+struct UserFunction {
     name: &'static str,
-    fun: Py<PyAny>,
-    jac: Option<Py<PyAny>>,
-    hess: Option<Py<PyAny>>,
+    fun: Callee,
+    jac: Option<Callee>,
+    hess: Option<Callee>,
     dim_in: usize,
     dim_out: usize,
     /// The shape of one point's result (`[dim_out]`, or `[n, r]` for a noise gain).
     shape: Vec<usize>,
 }
 
-impl PyFunction {
-    /// Calls `callable(X, t, u)` and copies its result, which must have `per_point` numbers
-    /// per point in the shape `shape_tail`, into `out`.
+impl UserFunction {
+    /// Calls `callee` at the k `points` and copies its result, which must have the shape
+    /// `shape_tail` per point, into `out`.
     #[allow(clippy::too_many_arguments)]
     fn call(
         &self,
-        callable: &Py<PyAny>,
+        callee: &Callee,
         what: &str,
         points: &[f64],
         k: usize,
@@ -48,9 +80,25 @@ impl PyFunction {
         shape_tail: &[usize],
         out: &mut [f64],
     ) -> Result<()> {
+        let fail = |problem: String| Error::arg_at(self.name, t, problem);
+        let points = &points[..k * self.dim_in];
+        let callable = match callee {
+            Callee::C(fun) => {
+                let (k_c, n_c) = (isize::try_from(k), isize::try_from(self.dim_in));
+                let (Ok(k_c), Ok(n_c), Ok(t_c)) = (k_c, n_c, i64::try_from(t)) else {
+                    return Err(fail("too many points for a C call".into()));
+                };
+                let out = &mut out[..k * shape_tail.iter().product::<usize>()];
+                let u = u.map_or(std::ptr::null(), |u| u.as_ptr());
+                // SAFETY: the caller of `kfast.NonlinearModel` vouched for the address (its
+                // signature was checked in Python); the buffers have the sizes it promises.
+                unsafe { fun(points.as_ptr(), k_c, n_c, t_c, u, out.as_mut_ptr()) };
+                return Ok(());
+            }
+            Callee::Python(callable) => callable,
+        };
         Python::attach(|py| {
-            let fail = |problem: String| Error::arg_at(self.name, t, problem);
-            let x = Array2::from_shape_vec((k, self.dim_in), points[..k * self.dim_in].to_vec())
+            let x = Array2::from_shape_vec((k, self.dim_in), points.to_vec())
                 .map_err(|e| fail(e.to_string()))?
                 .into_pyarray(py);
             let u = u.map(|u| numpy::PyArray1::from_slice(py, u));
@@ -99,13 +147,17 @@ fn describe(py: Python<'_>, err: &PyErr) -> String {
     format!("{kind}: {}", err.value(py))
 }
 
-impl PointFunction for PyFunction {
+impl PointFunction for UserFunction {
     fn dim_in(&self) -> usize {
         self.dim_in
     }
 
+    /// Compiled functions run on any thread; a Python one holds the GIL for its call.
     fn parallel(&self) -> bool {
-        false
+        [Some(&self.fun), self.jac.as_ref(), self.hess.as_ref()]
+            .into_iter()
+            .flatten()
+            .all(|c| matches!(c, Callee::C(_)))
     }
 
     fn dim_out(&self) -> usize {
@@ -127,46 +179,9 @@ impl PointFunction for PyFunction {
     }
 }
 
-/// The C signature of a compiled f or h: `void f(const double *X, intptr_t k, intptr_t n,
-/// int64_t t, const double *u, double *out)` — the k points X (k × n, row-major), the step t,
-/// the input row u (NULL without inputs) and the k × dim_out results.
-type CFn = unsafe extern "C" fn(*const f64, isize, isize, i64, *const f64, *mut f64);
-
-/// A compiled f or h (a numba `@cfunc` or a `scipy.LowLevelCallable` of the signature [`CFn`],
-/// checked in Python before its address gets here), called from the filter's loop directly,
-/// without the GIL.
-struct CFunction {
-    name: &'static str,
-    fun: CFn,
-    dim_in: usize,
-    dim_out: usize,
-}
-
-impl PointFunction for CFunction {
-    fn dim_in(&self) -> usize {
-        self.dim_in
-    }
-
-    fn dim_out(&self) -> usize {
-        self.dim_out
-    }
-
-    fn eval(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        let (k_c, n_c) = (isize::try_from(k), isize::try_from(self.dim_in));
-        let (Ok(k_c), Ok(n_c), Ok(t_c)) = (k_c, n_c, i64::try_from(t)) else {
-            return Err(Error::arg_at(self.name, t, "too many points for a C call"));
-        };
-        let (points, out) = (&points[..k * self.dim_in], &mut out[..k * self.dim_out]);
-        let u = u.map_or(std::ptr::null(), |u| u.as_ptr());
-        // SAFETY: the caller of `kfast.NonlinearModel` vouched for the address (its signature
-        // was checked in Python); the buffers have the sizes the signature promises.
-        unsafe { (self.fun)(points.as_ptr(), k_c, n_c, t_c, u, out.as_mut_ptr()) };
-        Ok(())
-    }
-}
-
-/// f or h from Python: a callable, or a built-in given as `(kind, params)`:
-/// `("coordinated_turn", (dt,))`, `("range_bearing", (sx, sy))`, `("linear", A)`.
+/// f, h or g from Python: a callable or `("cfunc", address)` (with the Jacobian and Hessians
+/// given, either kind), or a built-in given as `(kind, params)`: `("coordinated_turn", (dt,))`,
+/// `("range_bearing", (sx, sy))`, `("linear", A)`.
 fn point_function(
     name: &'static str,
     spec: &Bound<'_, PyAny>,
@@ -175,8 +190,8 @@ fn point_function(
     shape: &[usize],
 ) -> PyResult<Arc<dyn PointFunction>> {
     let dim_out = shape.iter().product();
-    if let Ok(tuple) = spec.cast::<PyTuple>() {
-        let kind: String = tuple.get_item(0)?.extract()?;
+    let built_in = spec.cast::<PyTuple>().ok().map(|t| Ok::<_, PyErr>((t.get_item(0)?.extract::<String>()?, t)));
+    if let Some((kind, tuple)) = built_in.transpose()?.filter(|(kind, _)| kind != "cfunc") {
         let params = tuple.get_item(1)?;
         let built: Arc<dyn PointFunction> = match kind.as_str() {
             "coordinated_turn" => Arc::new(CoordinatedTurn::new(params.extract::<(f64,)>()?.0)?),
@@ -194,16 +209,6 @@ fn point_function(
             }
             "ungm" => Arc::new(Ungm::transition()),
             "ungm_measurement" => Arc::new(Ungm::measurement()),
-            "cfunc" => {
-                let address: usize = params.extract()?;
-                if address == 0 {
-                    return Err(KfastError::new_err(format!("{name}: the compiled function's address is 0")));
-                }
-                // SAFETY: a non-null address of a function of the signature CFn (checked in
-                // Python, kfast.nonlinear.model._compiled).
-                let fun: CFn = unsafe { std::mem::transmute::<usize, CFn>(address) };
-                Arc::new(CFunction { name, fun, dim_in: n, dim_out })
-            }
             "constant" => {
                 let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
                 let values =
@@ -228,15 +233,12 @@ fn point_function(
         }
         return Ok(built);
     }
-    if !spec.is_callable() {
-        return Err(KfastError::new_err(format!("{name}: expected a callable f(X, t, u) or a kfast.models built-in")));
-    }
-    let unbind = |f: Option<&Bound<'_, PyAny>>| f.map(|f| f.clone().unbind());
-    Ok(Arc::new(PyFunction {
+    let derivative = |what: &str, d: Option<&Bound<'_, PyAny>>| d.map(|d| Callee::of(what, d)).transpose();
+    Ok(Arc::new(UserFunction {
         name,
-        fun: spec.clone().unbind(),
-        jac: unbind(jac),
-        hess: unbind(hess),
+        fun: Callee::of(name, spec)?,
+        jac: derivative(&format!("jac_{name}"), jac)?,
+        hess: derivative(&format!("hess_{name}"), hess)?,
         dim_in: n,
         dim_out,
         shape: shape.to_vec(),
@@ -263,9 +265,21 @@ fn parse_method(
 ) -> PyResult<SmoothMethod> {
     match method {
         "ekf" => Ok(SmoothMethod::Ekf(ekf_options(form, iterations, iteration, order)?)),
-        "ukf" => Ok(SmoothMethod::Ukf(sigma_points(points)?)),
+        "ukf" => Ok(SmoothMethod::Ukf(ukf_options(points, form)?)),
         other => Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
     }
+}
+
+/// The UKF's sigma points and form ("standard" or "sqrt").
+fn ukf_options(points: PointsSpec<'_>, form: &str) -> PyResult<UkfOptions> {
+    let form = match form {
+        "standard" => UkfForm::Standard,
+        "sqrt" => UkfForm::SquareRoot,
+        other => {
+            return Err(KfastError::new_err(format!("form: the UKF's form is \"standard\" or \"sqrt\", got {other:?}")))
+        }
+    };
+    Ok(UkfOptions { points: sigma_points(points)?, form })
 }
 
 fn parse_iteration(iteration: &str) -> PyResult<Iteration> {
@@ -418,7 +432,7 @@ impl PyNonlinearModel {
     }
 
     /// The unscented Kalman filter with the sigma points `(kind, alpha, beta, kappa)`.
-    #[pyo3(signature = (y, x0, P0, outputs, points, u=None))]
+    #[pyo3(signature = (y, x0, P0, outputs, points, u=None, form="standard"))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn ukf<'py>(
@@ -430,10 +444,11 @@ impl PyNonlinearModel {
         outputs: Vec<String>,
         points: PointsSpec<'py>,
         u: Option<Array<'py>>,
+        form: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let points = sigma_points(points)?;
+        let options = ukf_options(points, form)?;
         self.run(py, y, x0, P0, u, &outputs, |model, y, u, x0, p0, out| {
-            nonlinear::ukf_into(model, y, u, x0, p0, points.clone(), out)
+            nonlinear::ukf_into(model, y, u, x0, p0, options.clone(), out)
         })
     }
 
@@ -563,7 +578,7 @@ impl PyNonlinearKalmanFilter {
             "ekf" => {
                 nonlinear::NonlinearKalmanFilter::ekf(shared, x0, p0, ekf_options(form, iterations, iteration, order)?)?
             }
-            "ukf" => nonlinear::NonlinearKalmanFilter::ukf(shared, x0, p0, sigma_points(points)?)?,
+            "ukf" => nonlinear::NonlinearKalmanFilter::ukf(shared, x0, p0, ukf_options(points, form)?)?,
             other => return Err(KfastError::new_err(format!("method: expected \"ekf\" or \"ukf\", got {other:?}"))),
         };
         Ok(PyNonlinearKalmanFilter { inner })
