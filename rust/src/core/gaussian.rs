@@ -250,6 +250,16 @@ impl<D: Dims> GaussianUpdate<D> {
         self.nn_b.clone_from(nn_b);
     }
 
+    /// Takes the results of an update done with other sizes (the factor of S, S⁻¹ e, K' and
+    /// the log-likelihood parts), for `mo` observed components and n states.
+    #[inline(always)]
+    pub fn copy_results_of<E: Dims>(&mut self, other: &GaussianUpdate<E>, mo: usize, n: usize) {
+        self.s_factor.get_mut()[..mo * mo].copy_from_slice(&other.s_factor.get()[..mo * mo]);
+        self.s_inv_e.get_mut()[..mo].copy_from_slice(&other.s_inv_e.get()[..mo]);
+        self.gain_t.get_mut()[..mo * n].copy_from_slice(&other.gain_t.get()[..mo * n]);
+        (self.observed, self.log_det, self.quad) = (other.observed, other.log_det, other.quad);
+    }
+
     /// The update of `(x_pred, p_pred)` by the `mo` observed components predicted in `pred`,
     /// into `(x_filt, p_filt)`. Fails (naming step `t`) when S is not positive definite.
     #[allow(clippy::too_many_arguments)]

@@ -18,8 +18,8 @@ use super::function::{hessian_by_differences, jacobian_by_differences, wrap_angl
 use super::model::{NoiseScratch, NonlinearModel, Transition};
 use super::sigma::{cholesky, place, semidefinite_cholesky, unscented_transform, SigmaPoints, Transformed, Weights};
 use super::square_root::{downdate, tria};
-use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize};
-use crate::core::dims::Dyn;
+use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
+use crate::core::dims::{Dims, Dyn, Fixed};
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
 use crate::core::Series;
 use crate::error::{Error, Result};
@@ -344,8 +344,7 @@ impl GaussianFilter for Ekf {
         jac_f.resize(n * na, 0.0);
         jacobian(f, "f", point, t, u, &[], diffs, jac_f)?;
         fp.resize(n * na, 0.0);
-        mul::<Dyn>(fp, jac_f, cov, n, na, na);
-        mul_bt_sym::<Dyn>(p, fp, jac_f, n, na);
+        propagate(n, na, jac_f, cov, fp, p);
         if let Some(c) = cross {
             // P(t|t) F' = (F P(t|t))', the first n columns of J diag(P(t|t), Q)
             for (i, row) in c.chunks_exact_mut(n).enumerate() {
@@ -692,6 +691,82 @@ struct Residual<'a> {
     h_at_xi: &'a [f64],
 }
 
+/// `$body` with `$d` bound to compile-time sizes for the common small (n, m) — n ≤ 6, m ≤ 3 —
+/// so that the dense kernels it calls are unrolled for them; `$other` for any other size. The
+/// kernels' arithmetic is the same at either kind of size, so the bits are too.
+macro_rules! with_step_sizes {
+    ($n:expr, $m:expr, |$d:ident| $body:expr, else $other:expr) => {
+        with_step_sizes!(@arms ($n, $m), $d, $body, $other;
+            (1, 1) (2, 1) (2, 2) (3, 1) (3, 2) (3, 3) (4, 1) (4, 2) (4, 3) (5, 1) (5, 2) (5, 3) (6, 1) (6, 2) (6, 3))
+    };
+    (@arms ($n:expr, $m:expr), $d:ident, $body:expr, $other:expr; $(($a:literal, $b:literal))*) => {
+        match ($n, $m) {
+            $(($a, $b) => {
+                let $d = Fixed::<$a, $b>;
+                $body
+            })*
+            _ => $other,
+        }
+    };
+}
+
+/// `F P F'` into `p` (n × n, one triangle mirrored) with `F P` into `fp`, for F n × k and P
+/// k × k (k = n, or n + r with noise inputs); at compile-time sizes for k = n ≤ 6.
+fn propagate(n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut [f64]) {
+    fn sized<D: Dims>(d: D, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut [f64]) {
+        let n = d.n();
+        let (f, cov, fp, p) = (&f[..n * k], &cov[..k * k], &mut fp[..n * k], &mut p[..n * n]);
+        mul::<D>(fp, f, cov, n, k, k);
+        mul_bt_sym::<D>(p, fp, f, n, k);
+    }
+    if k == n {
+        with_step_sizes!(n, 1, |d| sized(d, d.n(), f, cov, fp, p), else sized(Dyn { n, m: 1 }, k, f, cov, fp, p))
+    } else {
+        sized(Dyn { n, m: 1 }, k, f, cov, fp, p)
+    }
+}
+
+/// The Gaussian update (Söderström Lemma 6.1) of `prior` into `post` by the `mo` observed
+/// components, its results left in `gauss`: at compile-time sizes where
+/// [`with_step_sizes!`] has them (a local workspace; the results copied out).
+#[allow(clippy::too_many_arguments)]
+fn gaussian_update(
+    gauss: &mut GaussianUpdate<Dyn>,
+    n: usize,
+    m: usize,
+    mo: usize,
+    pred: &MeasurementPrediction<'_>,
+    (x, p): (&[f64], &[f64]),
+    (x_filt, p_filt): (&mut [f64], &mut [f64]),
+    t: usize,
+) -> Result<()> {
+    fn sized<D: Dims>(
+        d: D,
+        gauss: &mut GaussianUpdate<Dyn>,
+        mo: usize,
+        pred: &MeasurementPrediction<'_>,
+        (x, p): (&[f64], &[f64]),
+        (x_filt, p_filt): (&mut [f64], &mut [f64]),
+        t: usize,
+    ) -> Result<()> {
+        // slices of the sizes' constant lengths, so that the loops over them unroll
+        let n = d.n();
+        let (x, p, x_filt, p_filt) = (&x[..n], &p[..n * n], &mut x_filt[..n], &mut p_filt[..n * n]);
+        let mut local = GaussianUpdate::new(d);
+        if mo == d.m() {
+            // every component observed (the usual step): mo a constant too
+            local.apply(d, d.m(), pred, x, p, x_filt, p_filt, t)?;
+        } else {
+            local.apply(d, mo, pred, x, p, x_filt, p_filt, t)?;
+        }
+        gauss.copy_results_of(&local, mo, n);
+        Ok(())
+    }
+    with_step_sizes!(n, m, |d| sized(d, gauss, mo, pred, (x, p), (x_filt, p_filt), t), else {
+        gauss.apply(Dyn { n, m }, mo, pred, x, p, x_filt, p_filt, t)
+    })
+}
+
 /// One filter's state and step buffers (run-time sizes, allocated once per call, and again
 /// only when a streaming filter's sensor changes m).
 pub(crate) struct Step {
@@ -858,10 +933,16 @@ impl Step {
 
     /// For a linearized measurement (EKF): C = P H' and S = H P H' + R for all components.
     fn linearize(&mut self, sensor: Sensor<'_>) {
+        fn sized<D: Dims>(d: D, p: &[f64], jac_h: &[f64], c: &mut [f64], s: &mut [f64]) {
+            let (n, m) = (d.n(), d.m());
+            let (p, jac_h, c, s) = (&p[..n * n], &jac_h[..m * n], &mut c[..n * m], &mut s[..m * m]);
+            mul_bt::<D>(c, p, jac_h, n, n, m);
+            mul::<D>(s, jac_h, c, m, n, m);
+            symmetrize(s, m);
+        }
         let (n, m) = (self.n, self.m);
-        mul_bt::<Dyn>(&mut self.c_full, &self.p, &self.jac_h, n, n, m);
-        mul::<Dyn>(&mut self.s_full, &self.jac_h, &self.c_full, m, n, m);
-        symmetrize(&mut self.s_full, m);
+        let Step { p, jac_h, c_full, s_full, .. } = self;
+        with_step_sizes!(n, m, |d| sized(d, p, jac_h, c_full, s_full), else sized(Dyn { n, m }, p, jac_h, c_full, s_full));
         self.add_measurement_noise(sensor);
     }
 
@@ -889,6 +970,15 @@ impl Step {
     fn gather(&mut self, sensor: Sensor<'_>, residual: Option<Residual<'_>>) {
         let (n, m, mo) = (self.n, self.m, self.observed.len());
         let r = sensor.r;
+        if mo == m && residual.is_none() {
+            // everything observed: the blocks are the whole arrays
+            self.h_obs.copy_from_slice(&self.jac_h);
+            self.e_obs.copy_from_slice(&self.innov);
+            self.c_obs.copy_from_slice(&self.c_full);
+            self.s_obs.copy_from_slice(&self.s_full);
+            self.r_obs.copy_from_slice(r);
+            return;
+        }
         for (a, &i) in self.observed.iter().enumerate() {
             let h = &self.jac_h[i * n..(i + 1) * n];
             self.h_obs[a * n..(a + 1) * n].copy_from_slice(h);
@@ -933,9 +1023,13 @@ impl Step {
             innov_cov: &s_obs[..mo * mo],
             joseph: (form == UpdateForm::Joseph).then(|| (&h_obs[..mo * n], &r_obs[..mo * mo])),
         };
-        gauss.apply(Dyn { n, m }, mo, &pred, x, p, x_filt, p_filt, t)?;
-        self.gain.fill(0.0);
+        gaussian_update(gauss, n, m, mo, &pred, (x, p), (x_filt, p_filt), t)?;
         let gain_t = self.gauss.gain_t(mo, n);
+        if mo == m {
+            transpose(&mut self.gain, gain_t, m, n);
+            return Ok(());
+        }
+        self.gain.fill(0.0);
         for (a, &i) in self.observed.iter().enumerate() {
             for row in 0..n {
                 self.gain[row * m + i] = gain_t[a * n + row];

@@ -222,12 +222,14 @@ fn cholesky_sized(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(),
         }
         let d = d.sqrt();
         l[j * n + j] = d;
+        // one division per column: the column's entries below are products with 1/d
+        let inv = 1.0 / d;
         for i in j + 1..n {
             let mut s = a[i * n + j];
             for k in 0..j {
                 s -= l[i * n + k] * l[j * n + k];
             }
-            l[i * n + j] = s / d;
+            l[i * n + j] = s * inv;
         }
     }
     Ok(())
