@@ -71,13 +71,21 @@ impl PointFunction for LinearMap {
     }
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        let (r, c) = (self.rows, self.cols);
-        for i in 0..k {
-            let x = &points[i * c..(i + 1) * c];
-            for (j, o) in out[i * r..(i + 1) * r].iter_mut().enumerate() {
-                *o = self.a[j * c..(j + 1) * c].iter().zip(x).map(|(a, x)| a * x).sum();
-            }
+        // sizes up to 6 × 6 get the loop compiled for them (unrolled: a step's few points
+        // are loop-control bound at run-time sizes), others the same loop at run time
+        macro_rules! sized {
+            ($(($r:literal, $c:literal))*) => {
+                match (self.rows, self.cols) {
+                    $(($r, $c) => map_points(&self.a, points, k, out, $r, $c),)*
+                    (r, c) => map_points(&self.a, points, k, out, r, c),
+                }
+            };
         }
+        sized!((1, 1)(1, 2)(1, 3)(1, 4)(1, 5)(1, 6)(2, 1)(2, 2)(2, 3)(2, 4)(2, 5)(2, 6)(3, 1)(3, 2)(3, 3)(3, 4)(3, 5)(
+            3, 6
+        )(4, 1)(4, 2)(4, 3)(4, 4)(4, 5)(4, 6)(5, 1)(5, 2)(5, 3)(5, 4)(5, 5)(5, 6)(6, 1)(6, 2)(6, 3)(
+            6, 4
+        )(6, 5)(6, 6));
         Ok(())
     }
 
@@ -93,6 +101,24 @@ impl PointFunction for LinearMap {
             block.copy_from_slice(&self.a);
         }
         Some(Ok(()))
+    }
+}
+
+/// `out_i = A x_i` for the k points `x_i` (rows of `points`), A r × c: each entry summed left
+/// to right.
+#[inline(always)]
+fn map_points(a: &[f64], points: &[f64], k: usize, out: &mut [f64], r: usize, c: usize) {
+    let a = &a[..r * c];
+    for i in 0..k {
+        let (x, o) = (&points[i * c..][..c], &mut out[i * r..][..r]);
+        for j in 0..r {
+            let row = &a[j * c..][..c];
+            let mut acc = 0.0;
+            for l in 0..c {
+                acc += row[l] * x[l];
+            }
+            o[j] = acc;
+        }
     }
 }
 

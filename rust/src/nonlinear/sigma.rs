@@ -405,11 +405,25 @@ fn transform_sized(
 ) {
     use super::function::wrap_angle;
     let k = w.mean.len();
-    let Transformed { dev, d, e, mean: z_mean, cov, cross } = out;
-    // Every slice cut to its size and every row taken as `[i * len..][..len]`, so that a sized
-    // arm knows every length and keeps no bounds checks.
-    let (d, e, z_mean) = (&mut d[..r], &mut e[..n], &mut z_mean[..r]);
-    let (cov, cross) = (&mut cov[..r * r], &mut cross[..n * r]);
+    let Transformed { dev, d: d_out, e: e_out, mean: z_mean, cov: cov_out, cross: cross_out } = out;
+    // The sums accumulate in local arrays where they fit (every sized arm): the compiler then
+    // keeps them in registers across the loop over the points, which it cannot do for `out`'s
+    // buffers (it cannot rule out that they overlap the points). Every slice is cut to its size
+    // and every row taken as `[i * len..][..len]`, so that a sized arm knows every length and
+    // keeps no bounds checks.
+    let local = n <= SMALL && r <= SMALL;
+    let (mut d_local, mut e_local) = ([0.0; SMALL], [0.0; SMALL]);
+    let (mut cov_local, mut cross_local) = ([0.0; SMALL * SMALL], [0.0; SMALL * SMALL]);
+    // (otherwise `out`'s buffers, moved out meanwhile: no allocation)
+    let take = |v: &mut Vec<f64>| if local { Vec::new() } else { std::mem::take(v) };
+    let (mut d_heap, mut e_heap, mut cov_heap, mut cross_heap) =
+        (take(d_out), take(e_out), take(cov_out), take(cross_out));
+    let (d, e, cov, cross): (&mut [f64], &mut [f64], &mut [f64], &mut [f64]) = if local {
+        (&mut d_local[..r], &mut e_local[..n], &mut cov_local[..r * r], &mut cross_local[..n * r])
+    } else {
+        (&mut d_heap[..r], &mut e_heap[..n], &mut cov_heap[..r * r], &mut cross_heap[..n * r])
+    };
+    let z_mean = &mut z_mean[..r];
     let (x_pts, z_pts, dev) = (&x_pts[..k * n], &z_pts[..k * r], &mut dev[..k * r]);
     let (z0, x0) = (&z_pts[..r], &x_pts[..n]);
     // deviations from the first point (the centre, if any), angles wrapped
@@ -489,7 +503,19 @@ fn transform_sized(
             cov[a * r + b] = cov[b * r + a];
         }
     }
+    if local {
+        d_out[..r].copy_from_slice(d);
+        cov_out[..r * r].copy_from_slice(cov);
+        if want_cross {
+            cross_out[..n * r].copy_from_slice(cross);
+        }
+    } else {
+        (*d_out, *e_out, *cov_out, *cross_out) = (d_heap, e_heap, cov_heap, cross_heap);
+    }
 }
+
+/// The largest n and r whose transform sums stay in local arrays.
+const SMALL: usize = 6;
 
 /// `cov += w v v'` on and above the diagonal (`cov` is r × r, `v` an r-vector).
 #[inline(always)]
