@@ -14,9 +14,12 @@
 kfast runs each with the built-in Rust model, with the model compiled from C
 (benches/c/ct_radar.c, gcc -O3, passed as ctypes function pointers), with the same C written as
 numba @cfunc's (numba 0.68; "not installed" without it) and with the model as a vectorized
-Python callable (one call per step for all points). filterpy's UKF and EKF run the same model
-with its per-point Python functions (a short series: it is slow); its UKF is given the prior's
-sigma points for its first update, since it predicts first.
+Python callable (one call per step for all points). The C and numba models pass the built-in's
+closed-form Jacobians, compiled too (jac_f, jac_h), so that N2 compares like with like; one more
+numba row leaves them out, and kfast differences f and h instead (2n more points per call).
+filterpy's UKF and EKF run the same model with its per-point Python functions (a short series:
+it is slow); its UKF is given the prior's sigma points for its first update, since it predicts
+first.
 
 dynamax (jax.jit, CPU, float64; EKF Jacobians by jacfwd: derivatives, not differences) and
 Stone Soup's UnscentedKalmanPredictor/Updater (a short series, like filterpy) run in their own
@@ -176,13 +179,15 @@ def compiled_model(ct):
     lib = ctypes.CDLL(so)
     double_p = ctypes.POINTER(ctypes.c_double)
     proto = ctypes.CFUNCTYPE(None, double_p, ctypes.c_ssize_t, ctypes.c_ssize_t, ctypes.c_int64, double_p, double_p)
-    f, h = proto(("ct", lib)), proto(("radar", lib))
-    return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1])  # f, h keep the library loaded
+    f, h, jac_f, jac_h = (proto((name, lib)) for name in ("ct", "radar", "ct_jac", "radar_jac"))
+    # the function pointers keep the library loaded
+    return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1], jac_f=jac_f, jac_h=jac_h)
 
 
 def numba_model(ct):
-    """CT and the radar as numba @cfunc's, statement for statement benches/c/ct_radar.c (so
-    x_filt matches the C and built-in runs), or None without numba."""
+    """CT and the radar with their Jacobians as numba @cfunc's, statement for statement
+    benches/c/ct_radar.c (so x_filt matches the C and built-in runs): (the model, the model
+    without its Jacobians, which kfast then differences), or None without numba."""
     try:
         import math
 
@@ -194,19 +199,47 @@ def numba_model(ct):
     sig = types.void(double_p, types.intp, types.intp, types.int64, double_p, double_p)
 
     # error_model="numpy": C's float semantics, no zero-division checks (w is tested first anyway)
+    @numba.njit(error_model="numpy")
+    def turn(w, dt):
+        if w == 0.0:
+            return dt, 0.0, 1.0, 0.0
+        S, C = math.sin(w * dt), math.cos(w * dt)
+        one_minus_cos = S * S / (1.0 + C) if C >= 0.0 else 1.0 - C  # no cancellation as w -> 0
+        return S / w, one_minus_cos / w, C, S
+
     @numba.cfunc(sig, error_model="numpy")
     def f(X, k, n, t, u, out):
-        dt = 0.1
         for i in range(k):
             x, o = i * n, i * n  # row offsets of point i in X and out
-            w = X[x + 4]
-            S, C = math.sin(w * dt), math.cos(w * dt)
-            s, c = (dt, 0.0) if abs(w) < 1e-9 else (S / w, (1 - C) / w)
+            s, c, C, S = turn(X[x + 4], 0.1)
             out[o] = X[x] + s * X[x + 2] - c * X[x + 3]
             out[o + 1] = X[x + 1] + c * X[x + 2] + s * X[x + 3]
             out[o + 2] = C * X[x + 2] - S * X[x + 3]
             out[o + 3] = S * X[x + 2] + C * X[x + 3]
-            out[o + 4] = w
+            out[o + 4] = X[x + 4]
+
+    @numba.cfunc(sig, error_model="numpy")
+    def jac_f(X, k, n, t, u, out):
+        dt = 0.1
+        for i in range(k):
+            x, J = i * n, i * n * n
+            vx, vy, w = X[x + 2], X[x + 3], X[x + 4]
+            a = w * dt
+            s, c, C, S = turn(w, dt)
+            if abs(a) < 0.02:  # ds/dw, dc/dw by Taylor series: the closed forms are 0/0 at w = 0
+                t2, w2 = dt * dt, w * w
+                ds = -w * dt * t2 / 3.0 + w * w2 * t2 * t2 * dt / 30.0 - w * w2 * w2 * t2 * t2 * t2 * dt / 840.0
+                dc = t2 / 2.0 - w2 * t2 * t2 / 8.0 + w2 * w2 * t2 * t2 * t2 / 144.0
+            else:
+                ds = (a * C - S) / (w * w)
+                dc = (a * S - c * w) / (w * w)
+            for e in range(25):
+                out[J + e] = 0.0
+            out[J], out[J + 2], out[J + 3], out[J + 4] = 1.0, s, -c, ds * vx - dc * vy
+            out[J + 6], out[J + 7], out[J + 8], out[J + 9] = 1.0, c, s, dc * vx + ds * vy
+            out[J + 12], out[J + 13], out[J + 14] = C, -S, -dt * (S * vx + C * vy)
+            out[J + 17], out[J + 18], out[J + 19] = S, C, dt * (C * vx - S * vy)
+            out[J + 24] = 1.0
 
     @numba.cfunc(sig, error_model="numpy")
     def h(X, k, n, t, u, out):
@@ -214,7 +247,21 @@ def numba_model(ct):
             out[2 * i] = math.hypot(X[i * n], X[i * n + 1])
             out[2 * i + 1] = math.atan2(X[i * n + 1], X[i * n])
 
-    return kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1])
+    @numba.cfunc(sig, error_model="numpy")
+    def jac_h(X, k, n, t, u, out):
+        for i in range(k):
+            x, J = i * n, i * 2 * n
+            r2 = X[x] * X[x] + X[x + 1] * X[x + 1]
+            r = math.sqrt(r2)
+            for e in range(2 * n):
+                out[J + e] = 0.0
+            out[J], out[J + 1] = X[x] / r, X[x + 1] / r
+            out[J + n], out[J + n + 1] = -X[x + 1] / r2, X[x] / r2
+
+    return (
+        kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1], jac_f=jac_f, jac_h=jac_h),
+        kfast.NonlinearModel(f, h, ct.Q, R, n=5, angles=[1]),
+    )
 
 
 PEER_VENV = "/work/venv-peers"
@@ -263,7 +310,7 @@ def main(argv=None):
         jac_h=lambda X, t, u: np.array([rb_jac_one(x) for x in X]), angles=[1],
     )
     compiled = compiled_model(ct)
-    jitted = numba_model(ct)
+    jitted, differenced = numba_model(ct) or (None, None)
     merwe = kfast.sigma.merwe(0.5, 2.0, 0.0)
     out = ("x_filt", "P_filt")
     cv = kfast.models.constant_velocity(2, DT, q=1.0, r=1.0)
@@ -286,8 +333,9 @@ def main(argv=None):
         ],
         "N2: EKF on CT (analytic Jacobians)": [
             Contender("kfast built-in", lambda: builtin.ekf(y, X0, P0, outputs=out), T),
-            Contender("kfast compiled C (cfunc path; differenced Jacobians)", lambda: compiled.ekf(y, X0, P0, outputs=out), T),
-            Contender("kfast numba cfunc (differenced Jacobians)", lambda: jitted.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast compiled C (cfunc path; compiled Jacobians)", lambda: compiled.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast numba cfunc (compiled Jacobians)", lambda: jitted.ekf(y, X0, P0, outputs=out), T),
+            Contender("kfast numba cfunc (differenced Jacobians)", lambda: differenced.ekf(y, X0, P0, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ekf(y[:T_py], X0, P0, outputs=out), T_py),
             Contender("filterpy EKF", filterpy_ekf(ct, y[:T_peer]), T_peer),
             Contender("dynamax EKF", None, T),
@@ -326,6 +374,9 @@ def main(argv=None):
         else:
             checks["N1"].insert(i, (f"kfast {what}", model.ukf(y, X0, P0, points=merwe).x_filt))
             checks["N2"].insert(i, (f"kfast {what}", model.ekf(y, X0, P0).x_filt))
+    if differenced is not None:
+        after = [who for who, _ in checks["N2"]].index("kfast numba") + 1
+        checks["N2"].insert(after, ("kfast numba (differenced Jacobians)", differenced.ekf(y, X0, P0).x_filt))
     for name, contenders in workloads.items():
         run_interleaved([c for c in contenders if c.fn is not None], rounds)
         base = contenders[0]

@@ -862,8 +862,10 @@ def coordinated_turn(dt, q=1.0, sigma_omega=0.0, omega=None) -> BuiltinFunction:
         py' = py + c vx + s vy      vy' = S vx + C vy
         s = sin(omega dt)/omega,  c = (1 - cos(omega dt))/omega,  C = cos(omega dt),  S = sin(omega dt)
 
-    evaluated through sinc so that omega -> 0 (the constant-velocity model) is exact, with its
-    Jacobian in closed form (a Taylor series for |omega dt| < 0.02). ``.Q`` is the process
+    evaluated from one sine and cosine with 1 - cos = sin^2 / (1 + cos) for |omega dt| <= pi/2,
+    so that omega -> 0 has no cancellation and omega = 0 is the constant-velocity model exactly
+    (the known-omega map through sinc), with its Jacobian in closed form (a Taylor series for
+    |omega dt| < 0.02). ``.Q`` is the process
     noise that goes with it: white-noise acceleration of intensity ``q`` per axis,
     q [[dt^3/3, dt^2/2], [dt^2/2, dt]] on (p, v), and sigma_omega^2 dt on omega (the rotation
     of the noise by the turn is ignored, a standard approximation).

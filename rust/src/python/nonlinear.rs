@@ -104,11 +104,16 @@ impl UserFunction {
             let u = u.map(|u| numpy::PyArray1::from_slice(py, u));
             let result =
                 callable.bind(py).call1((x, t, u)).map_err(|e| fail(format!("{what} raised {}", describe(py, &e))))?;
-            let arr = py
-                .import("numpy")
-                .and_then(|np| np.getattr("asarray")?.call1((result, "float64")))
-                .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?))
-                .map_err(|e| fail(format!("{what} did not return an array of numbers ({})", describe(py, &e))))?;
+            // a float64 array as it is (the usual case: no call into NumPy), anything else
+            // through numpy.asarray
+            let arr = match result.cast_into::<PyArrayDyn<f64>>() {
+                Ok(arr) => arr,
+                Err(other) => py
+                    .import("numpy")
+                    .and_then(|np| np.getattr("asarray")?.call1((other.into_inner(), "float64")))
+                    .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?))
+                    .map_err(|e| fail(format!("{what} did not return an array of numbers ({})", describe(py, &e))))?,
+            };
             let mut want = vec![k];
             want.extend_from_slice(shape_tail);
             if arr.shape() != want.as_slice() {
