@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import scipy
 from numba import types
+from test_noise_gain import speed_gain  # speed_gain_c in NumPy
 from tracking import DT, ct, ct_jac, ct_problem, range_bearing, range_bearing_jac
 
 import kfast
@@ -110,17 +111,6 @@ def speed_gain_c(X, k, n, t, u, out):
         G[i, 0, 0], G[i, 1, 0], G[i, 2, 0], G[i, 3, 0] = DT**2 / 2 * c, DT**2 / 2 * s, DT * c, DT * s
         G[i, 0, 1], G[i, 1, 1], G[i, 2, 1], G[i, 3, 1] = -DT**2 / 2 * s, DT**2 / 2 * c, -DT * s, DT * c
         G[i, 4, 2] = DT
-
-
-def speed_gain(X, t, u):
-    """speed_gain_c in NumPy."""
-    v = np.hypot(X[:, 2], X[:, 3])
-    c, s = X[:, 2] / v, X[:, 3] / v
-    G = np.zeros((len(X), 5, 3))
-    G[:, 0, 0], G[:, 1, 0], G[:, 2, 0], G[:, 3, 0] = DT**2 / 2 * c, DT**2 / 2 * s, DT * c, DT * s
-    G[:, 0, 1], G[:, 1, 1], G[:, 2, 1], G[:, 3, 1] = -DT**2 / 2 * s, DT**2 / 2 * c, -DT * s, DT * c
-    G[:, 4, 2] = DT
-    return G
 
 
 # A seeded random model whose f and h depend on the step t and the inputs u (n = 3, m = 2, two

@@ -390,11 +390,17 @@ def _spec(name: str, fn: Any) -> Any:
         if part.ndim != 2 or fn.B is not None or fn.D is not None:
             raise _kfast.KfastError(f"{name}: a LinearGaussian used as {name} needs a constant {'F' if name == 'f' else 'H'} and no B or D")
         return ("linear", part)
+    return _callable(name, fn, f"a callable {name}(X, t, u) or a kfast.models built-in")
+
+
+def _callable(name: str, fn: Any, expected: str) -> Any:
+    """A compiled function as ("cfunc", address) (its signature checked), a Python callable as
+    it is."""
     address = _compiled_address(name, fn)
     if address is not None:
         return ("cfunc", address)
     if not callable(fn):
-        raise _kfast.KfastError(f"{name}: expected a callable {name}(X, t, u) or a kfast.models built-in, got {type(fn).__name__}")
+        raise _kfast.KfastError(f"{name}: expected {expected}, got {type(fn).__name__}")
     return fn
 
 
@@ -428,14 +434,7 @@ def _derivative(name: str, given: Any) -> Any:
     """A Jacobian or Hessians as the compiled model takes them: a Python callable, or
     ("cfunc", address) for a compiled function of ``C_SIGNATURE`` (its out holding k x m x n,
     or k x m x n x n, numbers)."""
-    if given is None:
-        return None
-    address = _compiled_address(name, given)
-    if address is not None:
-        return ("cfunc", address)
-    if not callable(given):
-        raise _kfast.KfastError(f"{name}: expected a callable or a compiled function, got {type(given).__name__}")
-    return given
+    return None if given is None else _callable(name, given, "a callable or a compiled function")
 
 
 def _noise_gain(g: Any, n: int, r: int) -> Any:

@@ -505,13 +505,7 @@ impl GaussianFilter for Ukf {
             }
         }
         let Ukf { ws, update_pts: PointSet { weights, factor, sigma, images, through }, sqrt, .. } = self;
-        let factor: &[f64] = match &ws.factors {
-            Some(f) => &f.pred,
-            None => {
-                square_root(factor, &ws.p, n, "P(t|t-1)", t)?;
-                factor
-            }
-        };
+        let factor = state_factor(ws.factors.as_ref().map(|f| &f.pred[..]), factor, &ws.p, n, "P(t|t-1)", t)?;
         place(weights, &ws.x, factor, sigma);
         evaluate(sensor.h, "h", sigma, k, t, u, images)?;
         unscented_transform(weights, sigma, images, sensor.angles, true, through);
@@ -542,24 +536,12 @@ impl GaussianFilter for Ukf {
         let Ukf { ws, update_pts, predict_pts, centre, q_factor, sqrt } = self;
         let PointSet { weights, factor, sigma, images, through } = predict_pts;
         let (n, r, k) = (ws.n, transition.noise_inputs, weights.mean.len());
-        // the factor of P(t|t): carried in the square-root form, else by Cholesky
+        let carried = ws.factors.as_ref().map(|f| &f.filt[..]);
         if r == 0 {
-            let l_filt: &[f64] = match &ws.factors {
-                Some(f) => &f.filt,
-                None => {
-                    square_root(factor, &ws.p_filt, n, "P(t|t)", t)?;
-                    factor
-                }
-            };
+            let l_filt = state_factor(carried, factor, &ws.p_filt, n, "P(t|t)", t)?;
             place(weights, &ws.x_filt, l_filt, sigma);
         } else {
-            let l_filt: &[f64] = match &ws.factors {
-                Some(f) => &f.filt,
-                None => {
-                    square_root(&mut update_pts.factor, &ws.p_filt, n, "P(t|t)", t)?;
-                    &update_pts.factor
-                }
-            };
+            let l_filt = state_factor(carried, &mut update_pts.factor, &ws.p_filt, n, "P(t|t)", t)?;
             // the augmented (x̂(t|t), 0) with the factor diag(L, L_Q) of diag(P(t|t), Q); Q may
             // be singular (its factor then has zero columns)
             let na = n + r;
@@ -668,6 +650,25 @@ fn add_half_traces(mean: &mut [f64], p: &[f64], hessians: &[f64], n: usize) {
         let trace: f64 =
             (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).map(|(i, j)| p[i * n + j] * h[j * n + i]).sum();
         *m += 0.5 * trace;
+    }
+}
+
+/// The lower factor of a state covariance: the one the square-root form carries, else its
+/// Cholesky factor (into `scratch`).
+fn state_factor<'a>(
+    carried: Option<&'a [f64]>,
+    scratch: &'a mut [f64],
+    p: &[f64],
+    n: usize,
+    what: &'static str,
+    t: usize,
+) -> Result<&'a [f64]> {
+    match carried {
+        Some(l) => Ok(l),
+        None => {
+            square_root(scratch, p, n, what, t)?;
+            Ok(scratch)
+        }
     }
 }
 
