@@ -21,6 +21,7 @@ use super::square_root::{downdate, tria};
 use crate::core::dense::{mul, mul_bt, mul_bt_sym, symmetrize, transpose};
 use crate::core::dims::{Dims, Dyn, Fixed};
 use crate::core::gaussian::{GaussianUpdate, LoglikSum, MeasurementPrediction};
+use crate::core::isa::{self, run_best, Kernel};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::filter::{FilterOutputs, UpdateForm};
@@ -344,7 +345,7 @@ impl GaussianFilter for Ekf {
         jac_f.resize(n * na, 0.0);
         jacobian(f, "f", point, t, u, &[], diffs, jac_f)?;
         fp.resize(n * na, 0.0);
-        propagate(n, na, jac_f, cov, fp, p);
+        propagate(ws.kernel, n, na, jac_f, cov, fp, p);
         if let Some(c) = cross {
             // P(t|t) F' = (F P(t|t))', the first n columns of J diag(P(t|t), Q)
             for (i, row) in c.chunks_exact_mut(n).enumerate() {
@@ -713,7 +714,8 @@ macro_rules! with_step_sizes {
 
 /// `F P F'` into `p` (n × n, one triangle mirrored) with `F P` into `fp`, for F n × k and P
 /// k × k (k = n, or n + r with noise inputs); at compile-time sizes for k = n ≤ 6.
-fn propagate(n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut [f64]) {
+fn propagate(kernel: Kernel, n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut [f64]) {
+    #[inline(always)]
     fn sized<D: Dims>(d: D, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut [f64]) {
         let n = d.n();
         let (f, cov, fp, p) = (&f[..n * k], &cov[..k * k], &mut fp[..n * k], &mut p[..n * n]);
@@ -721,7 +723,9 @@ fn propagate(n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut
         mul_bt_sym::<D>(p, fp, f, n, k);
     }
     if k == n {
-        with_step_sizes!(n, 1, |d| sized(d, d.n(), f, cov, fp, p), else sized(Dyn { n, m: 1 }, k, f, cov, fp, p))
+        with_step_sizes!(n, 1, |d| run_best!(kernel, d, |d| sized(d, d.n(), f, cov, fp, p)), else {
+            sized(Dyn { n, m: 1 }, k, f, cov, fp, p)
+        })
     } else {
         sized(Dyn { n, m: 1 }, k, f, cov, fp, p)
     }
@@ -729,9 +733,11 @@ fn propagate(n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mut [f64], p: &mut
 
 /// The Gaussian update (Söderström Lemma 6.1) of `prior` into `post` by the `mo` observed
 /// components, its results left in `gauss`: at compile-time sizes where
-/// [`with_step_sizes!`] has them (a local workspace; the results copied out).
+/// [`with_step_sizes!`] has them (a local workspace; the results copied out), in the loop of
+/// `kernel` (fused multiply-adds on AVX2 + FMA unless deterministic, as the linear filter).
 #[allow(clippy::too_many_arguments)]
 fn gaussian_update(
+    kernel: Kernel,
     gauss: &mut GaussianUpdate<Dyn>,
     n: usize,
     m: usize,
@@ -741,6 +747,7 @@ fn gaussian_update(
     (x_filt, p_filt): (&mut [f64], &mut [f64]),
     t: usize,
 ) -> Result<()> {
+    #[inline(always)]
     fn sized<D: Dims>(
         d: D,
         gauss: &mut GaussianUpdate<Dyn>,
@@ -763,7 +770,7 @@ fn gaussian_update(
         gauss.copy_results_of(&local, mo, n);
         Ok(())
     }
-    with_step_sizes!(n, m, |d| sized(d, gauss, mo, pred, (x, p), (x_filt, p_filt), t), else {
+    with_step_sizes!(n, m, |d| run_best!(kernel, d, |d| sized(d, gauss, mo, pred, (x, p), (x_filt, p_filt), t)), else {
         gauss.apply(Dyn { n, m }, mo, pred, x, p, x_filt, p_filt, t)
     })
 }
@@ -796,6 +803,8 @@ pub(crate) struct Step {
     gauss: GaussianUpdate<Dyn>,
     /// The lower factors of P(t|t−1) and P(t|t), carried by the square-root UKF.
     factors: Option<Factors>,
+    /// The loop the step's fixed-size products run in (read once per filter).
+    kernel: Kernel,
 }
 
 /// The lower Cholesky factors the square-root UKF carries beside P(t|t−1) and P(t|t).
@@ -829,6 +838,7 @@ impl Step {
             fp: vec![0.0; n * n],
             gauss: GaussianUpdate::new(Dyn { n, m }),
             factors: None,
+            kernel: isa::kernel(),
         }
     }
 
@@ -934,6 +944,7 @@ impl Step {
 
     /// For a linearized measurement (EKF): C = P H' and S = H P H' + R for all components.
     fn linearize(&mut self, sensor: Sensor<'_>) {
+        #[inline(always)]
         fn sized<D: Dims>(d: D, p: &[f64], jac_h: &[f64], c: &mut [f64], s: &mut [f64]) {
             let (n, m) = (d.n(), d.m());
             let (p, jac_h, c, s) = (&p[..n * n], &jac_h[..m * n], &mut c[..n * m], &mut s[..m * m]);
@@ -941,9 +952,11 @@ impl Step {
             mul::<D>(s, jac_h, c, m, n, m);
             symmetrize(s, m);
         }
-        let (n, m) = (self.n, self.m);
+        let (n, m, kernel) = (self.n, self.m, self.kernel);
         let Step { p, jac_h, c_full, s_full, .. } = self;
-        with_step_sizes!(n, m, |d| sized(d, p, jac_h, c_full, s_full), else sized(Dyn { n, m }, p, jac_h, c_full, s_full));
+        with_step_sizes!(n, m, |d| run_best!(kernel, d, |d| sized(d, p, jac_h, c_full, s_full)), else {
+            sized(Dyn { n, m }, p, jac_h, c_full, s_full)
+        });
         self.add_measurement_noise(sensor);
     }
 
@@ -1024,7 +1037,7 @@ impl Step {
             innov_cov: &s_obs[..mo * mo],
             joseph: (form == UpdateForm::Joseph).then(|| (&h_obs[..mo * n], &r_obs[..mo * mo])),
         };
-        gaussian_update(gauss, n, m, mo, &pred, (x, p), (x_filt, p_filt), t)?;
+        gaussian_update(self.kernel, gauss, n, m, mo, &pred, (x, p), (x_filt, p_filt), t)?;
         let gain_t = self.gauss.gain_t(mo, n);
         if mo == m {
             transpose(&mut self.gain, gain_t, m, n);
