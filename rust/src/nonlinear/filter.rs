@@ -273,14 +273,13 @@ impl GaussianFilter for Ekf {
         let Ekf { ws, options, diffs, iterate, x_i, h_at_xi, scratch_p, hess, .. } = self;
         let h = sensor.h;
         // measurement prediction at x̂(t|t−1) (9.9)
-        evaluate(h, "h", &ws.x, 1, t, u, &mut ws.y_hat)?;
+        evaluate_with_jacobian(h, "h", &ws.x, t, u, sensor.angles, diffs, &mut ws.y_hat, &mut ws.jac_h)?;
         if options.second_order {
             // h̄_k = ½ tr(P(t|t−1) ∇²h_k)  (9.23)
             hess.resize(m * n * n, 0.0);
             hessian(h, "h", &ws.x, t, u, diffs, hess)?;
             add_half_traces(&mut ws.y_hat, &ws.p, hess, n);
         }
-        jacobian(h, "h", &ws.x, t, u, sensor.angles, diffs, &mut ws.jac_h)?;
         ws.linearize(sensor);
         ws.observe(sensor, y);
         if ws.observed.is_empty() {
@@ -335,15 +334,14 @@ impl GaussianFilter for Ekf {
         // Jacobian [F L] applied to diag(P(t|t), Q), which adds L Q L'
         let (point, cov) =
             if r == 0 { (&x_filt[..], &p_filt[..]) } else { augmented.fill(x_filt, p_filt, transition.q, n, r) };
-        evaluate(f, "f", point, 1, t, u, x)?;
+        jac_f.resize(n * na, 0.0);
+        evaluate_with_jacobian(f, "f", point, t, u, &[], diffs, x, jac_f)?;
         if options.second_order {
             // f̄_k = ½ tr(P(t|t) ∇²f_k), with P(t|t) already computed  (9.22)
             hess.resize(n * na * na, 0.0);
             hessian(f, "f", point, t, u, diffs, &mut hess[..n * na * na])?;
             add_half_traces(x, cov, hess, na);
         }
-        jac_f.resize(n * na, 0.0);
-        jacobian(f, "f", point, t, u, &[], diffs, jac_f)?;
         fp.resize(n * na, 0.0);
         propagate(ws.kernel, n, na, jac_f, cov, fp, p);
         if let Some(c) = cross {
@@ -594,10 +592,43 @@ fn evaluate(
     out: &mut [f64],
 ) -> Result<()> {
     phi.eval(points, k, t, u, out)?;
-    if let Some(v) = out[..k * phi.dim_out()].iter().find(|v| !v.is_finite()) {
-        return Err(Error::arg_at(name, t, format!("returned a non-finite value ({v})")));
+    check_finite(name, t, &out[..k * phi.dim_out()], "returned a")
+}
+
+/// An error naming `name` and step `t` at the first non-finite number in `values`, the message
+/// starting with `what` ("returned a", "its Jacobian has a", ...).
+fn check_finite(name: &'static str, t: usize, values: &[f64], what: &str) -> Result<()> {
+    match values.iter().find(|v| !v.is_finite()) {
+        Some(v) => Err(Error::arg_at(name, t, format!("{what} non-finite value ({v})"))),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+/// φ and ∂φ/∂x at one point `x`: together where the function shares their work, else
+/// [`evaluate`] and [`jacobian`]; both checked finite.
+#[allow(clippy::too_many_arguments)]
+fn evaluate_with_jacobian(
+    phi: &dyn PointFunction,
+    name: &'static str,
+    x: &[f64],
+    t: usize,
+    u: Option<&[f64]>,
+    angles: &[usize],
+    diffs: &mut Differences,
+    value: &mut [f64],
+    jac: &mut [f64],
+) -> Result<()> {
+    match phi.eval_with_jacobian(x, t, u, value, jac) {
+        Some(result) => {
+            result?;
+            check_finite(name, t, &value[..phi.dim_out()], "returned a")?;
+            check_finite(name, t, jac, "its Jacobian has a")
+        }
+        None => {
+            evaluate(phi, name, x, 1, t, u, value)?;
+            jacobian(phi, name, x, t, u, angles, diffs, jac)
+        }
+    }
 }
 
 /// `∂φ/∂x` at `x`: the function's own Jacobian, or central differences; checked finite.
@@ -616,10 +647,7 @@ fn jacobian(
         Some(result) => result?,
         None => jacobian_by_differences(phi, x, t, u, angles, diffs, out)?,
     }
-    if let Some(v) = out.iter().find(|v| !v.is_finite()) {
-        return Err(Error::arg_at(name, t, format!("its Jacobian has a non-finite value ({v})")));
-    }
-    Ok(())
+    check_finite(name, t, out, "its Jacobian has a")
 }
 
 /// `∂²φ_i/∂x²` at `x` for every output: the function's own Hessians, or second differences;
@@ -637,10 +665,7 @@ fn hessian(
         Some(result) => result?,
         None => hessian_by_differences(phi, x, t, u, diffs, out)?,
     }
-    if let Some(v) = out.iter().find(|v| !v.is_finite()) {
-        return Err(Error::arg_at(name, t, format!("its Hessian has a non-finite value ({v})")));
-    }
-    Ok(())
+    check_finite(name, t, out, "its Hessian has a")
 }
 
 /// `mean_k += ½ tr(P H_k)` for the n × n Hessians `H_k` (one per component of `mean`).

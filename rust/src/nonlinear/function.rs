@@ -35,6 +35,21 @@ pub trait PointFunction: Send + Sync {
         None
     }
 
+    /// `φ(x)` (`dim_out`) and `∂φ/∂x` (`dim_out × n`) at one point together, for functions
+    /// whose value and Jacobian share work (the coordinated turn's sine and cosine); `None`
+    /// (the default) means "call [`eval`](Self::eval) and [`jacobian`](Self::jacobian)".
+    fn eval_with_jacobian(
+        &self,
+        x: &[f64],
+        t: usize,
+        u: Option<&[f64]>,
+        value: &mut [f64],
+        jac: &mut [f64],
+    ) -> Option<Result<()>> {
+        let _ = (x, t, u, value, jac);
+        None
+    }
+
     /// The Hessians `∂²φ_i/∂x²` at the `k` points (`k × dim_out × n × n`), when known in closed
     /// form; `None` (the default) means "use second differences".
     fn hessian(&self, points: &[f64], k: usize, t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
@@ -209,6 +224,10 @@ pub(crate) fn jacobian_by_differences(
 #[inline]
 pub fn wrap_angle(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
+    if a.abs() < 3.0 {
+        // the formula's value here (the floor is 0), without the call of floor
+        return a;
+    }
     a - TAU * ((a + PI) / TAU).floor()
 }
 

@@ -23,6 +23,7 @@ mod sigma;
 mod smoother;
 mod square_root;
 mod streaming;
+mod trig;
 
 pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor, UkfForm, UkfOptions};

@@ -3,6 +3,7 @@
 //! and with linear maps in one [`NonlinearModel`](super::NonlinearModel).
 
 use super::function::PointFunction;
+use super::trig::{self, LANES};
 use crate::error::{Error, Result};
 
 /// Coordinated turn with unknown turn rate, state (p_x, p_y, v_x, v_y, ω): the exact
@@ -32,12 +33,48 @@ impl CoordinatedTurn {
         }
         Ok(CoordinatedTurn { dt })
     }
+
+    /// f(x) into `out` (5), given (sin ω dt, cos ω dt).
+    #[inline(always)]
+    fn value_at(&self, x: &[f64], sin_cos: (f64, f64), out: &mut [f64]) {
+        let [px, py, vx, vy, w] = [x[0], x[1], x[2], x[3], x[4]];
+        let (s, c, cos, sin) = turn(w, self.dt, sin_cos);
+        out.copy_from_slice(&[px + s * vx - c * vy, py + c * vx + s * vy, cos * vx - sin * vy, sin * vx + cos * vy, w]);
+    }
+
+    /// ∂f/∂x at x into `out` (5 × 5), given (sin ω dt, cos ω dt).
+    #[inline(always)]
+    fn jacobian_at(&self, x: &[f64], sin_cos: (f64, f64), out: &mut [f64]) {
+        let dt = self.dt;
+        let [vx, vy, w] = [x[2], x[3], x[4]];
+        let (s, c, cos, sin) = turn(w, dt, sin_cos);
+        let a = w * dt;
+        // s' = ds/dω and c' = dc/dω: Taylor series near 0 (the closed forms are 0/0 there)
+        let (ds, dc) = if a.abs() < 0.02 {
+            let (t2, w2) = (dt * dt, w * w);
+            (
+                -w * dt * t2 / 3.0 + w * w2 * t2 * t2 * dt / 30.0 - w * w2 * w2 * t2 * t2 * t2 * dt / 840.0,
+                t2 / 2.0 - w2 * t2 * t2 / 8.0 + w2 * w2 * t2 * t2 * t2 / 144.0,
+            )
+        } else {
+            ((a * cos - sin) / (w * w), (a * sin - c * w) / (w * w))
+        };
+        #[rustfmt::skip]
+        out.copy_from_slice(&[
+            1.0, 0.0, s, -c, ds * vx - dc * vy,
+            0.0, 1.0, c, s, dc * vx + ds * vy,
+            0.0, 0.0, cos, -sin, -dt * (sin * vx + cos * vy),
+            0.0, 0.0, sin, cos, dt * (cos * vx - sin * vy),
+            0.0, 0.0, 0.0, 0.0, 1.0,
+        ]);
+    }
 }
 
-/// (sin x, cos x) in one call of the C library where it has `sincos` (one argument
-/// reduction for both), else two.
+/// (sin x, cos x) of one number, in one call of the C library where it has `sincos` (one
+/// argument reduction for both), else two. For one point (the EKF) the C library's
+/// table-driven routines are faster than [`trig::sin_cos`]'s polynomials on one lane.
 #[inline]
-fn sin_cos(x: f64) -> (f64, f64) {
+fn sin_cos_one(x: f64) -> (f64, f64) {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
         extern "C" {
@@ -54,16 +91,45 @@ fn sin_cos(x: f64) -> (f64, f64) {
     }
 }
 
-/// (s, c, C, S) of the turn by ω over dt (see [`CoordinatedTurn`]).
+/// (s, c, C, S) of the turn by ω over dt (see [`CoordinatedTurn`]), given (sin ω dt, cos ω dt).
 #[inline]
-fn turn(w: f64, dt: f64) -> (f64, f64, f64, f64) {
+fn turn(w: f64, dt: f64, (sin, cos): (f64, f64)) -> (f64, f64, f64, f64) {
     if w == 0.0 {
         return (dt, 0.0, 1.0, 0.0);
     }
-    let (sin, cos) = sin_cos(w * dt);
     // 1 − cos: from sin²/(1 + cos) near 0 (no cancellation), directly past ±π/2
     let one_minus_cos = if cos >= 0.0 { sin * sin / (1.0 + cos) } else { 1.0 - cos };
     (sin / w, one_minus_cos / w, cos, sin)
+}
+
+/// `(sin ω dt, cos ω dt)` for the up to [`LANES`] 5-state points in `xs` (ω the fifth number),
+/// computed together (one point, as in the EKF, through the C library).
+#[inline]
+fn turn_angles(xs: &[f64], dt: f64) -> ([f64; LANES], [f64; LANES]) {
+    if xs.len() == 5 {
+        let (sin, cos) = sin_cos_one(xs[4] * dt);
+        return ([sin; LANES], [cos; LANES]);
+    }
+    let mut angle = [0.0; LANES];
+    for (a, x) in angle.iter_mut().zip(xs.chunks_exact(5)) {
+        *a = x[4] * dt;
+    }
+    trig::sin_cos(angle)
+}
+
+/// The bearings `atan2(d_y, d_x)` of the up to [`LANES`] points in `xs` (rows of n) as seen
+/// from `sensor`, computed together (one point through the C library).
+#[inline]
+fn bearings(xs: &[f64], n: usize, sensor: [f64; 2]) -> [f64; LANES] {
+    if xs.len() == n {
+        return [(xs[1] - sensor[1]).atan2(xs[0] - sensor[0]); LANES];
+    }
+    // unused lanes at (1, 0): the fast path
+    let (mut dy, mut dx) = ([0.0; LANES], [1.0; LANES]);
+    for (l, x) in xs.chunks_exact(n).enumerate() {
+        (dx[l], dy[l]) = (x[0] - sensor[0], x[1] - sensor[1]);
+    }
+    trig::atan2(dy, dx)
 }
 
 /// `√(x² + y²)`: the square root where the squares neither overflow nor underflow (to a
@@ -88,45 +154,37 @@ impl PointFunction for CoordinatedTurn {
     }
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        for (x, o) in points.chunks_exact(5).zip(out.chunks_exact_mut(5)).take(k) {
-            let [px, py, vx, vy, w] = [x[0], x[1], x[2], x[3], x[4]];
-            let (s, c, cos, sin) = turn(w, self.dt);
-            o.copy_from_slice(&[
-                px + s * vx - c * vy,
-                py + c * vx + s * vy,
-                cos * vx - sin * vy,
-                sin * vx + cos * vy,
-                w,
-            ]);
+        for (xs, os) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 5].chunks_mut(5 * LANES)) {
+            let (sin, cos) = turn_angles(xs, self.dt);
+            for (l, (x, o)) in xs.chunks_exact(5).zip(os.chunks_exact_mut(5)).enumerate() {
+                self.value_at(x, (sin[l], cos[l]), o);
+            }
         }
         Ok(())
     }
 
     fn jacobian(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
-        let dt = self.dt;
-        for (x, j) in points.chunks_exact(5).zip(out.chunks_exact_mut(25)).take(k) {
-            let [vx, vy, w] = [x[2], x[3], x[4]];
-            let (s, c, cos, sin) = turn(w, dt);
-            let a = w * dt;
-            // s' = ds/dω and c' = dc/dω: Taylor series near 0 (the closed forms are 0/0 there)
-            let (ds, dc) = if a.abs() < 0.02 {
-                let (t2, w2) = (dt * dt, w * w);
-                (
-                    -w * dt * t2 / 3.0 + w * w2 * t2 * t2 * dt / 30.0 - w * w2 * w2 * t2 * t2 * t2 * dt / 840.0,
-                    t2 / 2.0 - w2 * t2 * t2 / 8.0 + w2 * w2 * t2 * t2 * t2 / 144.0,
-                )
-            } else {
-                ((a * cos - sin) / (w * w), (a * sin - c * w) / (w * w))
-            };
-            #[rustfmt::skip]
-            j.copy_from_slice(&[
-                1.0, 0.0, s, -c, ds * vx - dc * vy,
-                0.0, 1.0, c, s, dc * vx + ds * vy,
-                0.0, 0.0, cos, -sin, -dt * (sin * vx + cos * vy),
-                0.0, 0.0, sin, cos, dt * (cos * vx - sin * vy),
-                0.0, 0.0, 0.0, 0.0, 1.0,
-            ]);
+        for (xs, js) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 25].chunks_mut(25 * LANES)) {
+            let (sin, cos) = turn_angles(xs, self.dt);
+            for (l, (x, j)) in xs.chunks_exact(5).zip(js.chunks_exact_mut(25)).enumerate() {
+                self.jacobian_at(x, (sin[l], cos[l]), j);
+            }
         }
+        Some(Ok(()))
+    }
+
+    fn eval_with_jacobian(
+        &self,
+        x: &[f64],
+        _t: usize,
+        _u: Option<&[f64]>,
+        value: &mut [f64],
+        jac: &mut [f64],
+    ) -> Option<Result<()>> {
+        // one sine and cosine for both (the EKF's time update)
+        let sin_cos = sin_cos_one(x[4] * self.dt);
+        self.value_at(x, sin_cos, &mut value[..5]);
+        self.jacobian_at(x, sin_cos, &mut jac[..25]);
         Some(Ok(()))
     }
 }
@@ -168,9 +226,13 @@ impl PointFunction for RangeBearing {
     }
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        for (x, o) in points.chunks_exact(self.n).zip(out.chunks_exact_mut(2)).take(k) {
-            let (dx, dy) = self.offset(x);
-            o.copy_from_slice(&[norm2(dx, dy), dy.atan2(dx)]);
+        let n = self.n;
+        for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k * 2].chunks_mut(2 * LANES)) {
+            let bearing = bearings(xs, n, self.sensor);
+            for (l, (x, o)) in xs.chunks_exact(n).zip(os.chunks_exact_mut(2)).enumerate() {
+                let (dx, dy) = self.offset(x);
+                o.copy_from_slice(&[norm2(dx, dy), bearing[l]]);
+            }
         }
         Ok(())
     }
@@ -199,6 +261,30 @@ impl PointFunction for RangeBearing {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The EKF's value and Jacobian at one point together are the bits of `eval` and `jacobian`
+    /// called apart, and a batch of points (4-lane sines and cosines) agrees with one point at
+    /// a time (the C library's) to a few ulp.
+    #[test]
+    fn coordinated_turn_value_with_jacobian_and_batches() {
+        let ct = CoordinatedTurn::new(0.1).unwrap();
+        let points: Vec<f64> = (0..11).flat_map(|i| [1.0, -2.0, 3.0, 0.5, 0.3 * i as f64 - 1.4]).collect();
+        let (mut batch, mut batch_jac) = (vec![0.0; 55], vec![0.0; 275]);
+        ct.eval(&points, 11, 0, None, &mut batch).unwrap();
+        ct.jacobian(&points, 11, 0, None, &mut batch_jac).unwrap().unwrap();
+        for (i, x) in points.chunks_exact(5).enumerate() {
+            let (mut value, mut jac, mut both, mut both_jac) = ([0.0; 5], [0.0; 25], [0.0; 5], [0.0; 25]);
+            ct.eval(x, 1, 0, None, &mut value).unwrap();
+            ct.jacobian(x, 1, 0, None, &mut jac).unwrap().unwrap();
+            ct.eval_with_jacobian(x, 0, None, &mut both, &mut both_jac).unwrap().unwrap();
+            assert_eq!((value, jac), (both, both_jac));
+            for (one, many) in
+                value.iter().chain(&jac).zip(batch[i * 5..][..5].iter().chain(&batch_jac[i * 25..][..25]))
+            {
+                assert!((one - many).abs() <= 1e-15 * one.abs().max(1.0), "point {i}: {one} vs {many}");
+            }
+        }
+    }
 
     /// The ω column of the turn's Jacobian is continuous across the switch to its Taylor
     /// series and matches differences of the closed form on both sides; at ω = 0 it is the
@@ -262,9 +348,10 @@ impl PointFunction for Bearing {
     }
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        for (x, o) in points.chunks_exact(self.0.n).zip(out.iter_mut()).take(k) {
-            let (dx, dy) = self.0.offset(x);
-            *o = dy.atan2(dx);
+        let n = self.0.n;
+        for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k].chunks_mut(LANES)) {
+            let bearing = bearings(xs, n, self.0.sensor);
+            os.copy_from_slice(&bearing[..os.len()]);
         }
         Ok(())
     }

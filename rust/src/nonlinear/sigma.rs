@@ -206,30 +206,86 @@ macro_rules! with_small {
 /// The lower Cholesky factor of the symmetric `a[n×n]` into `l` (upper part zero); `Err(j)`
 /// when pivot j is not positive (P not positive definite to working precision).
 pub(crate) fn cholesky(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), usize> {
-    with_small!(n, |n| cholesky_sized(&mut l[..n * n], &a[..n * n], n))
+    let (l, a) = (&mut l[..n * n], &a[..n * n]);
+    match n {
+        1 => cholesky_fixed::<1>(l, a),
+        2 => cholesky_fixed::<2>(l, a),
+        3 => cholesky_fixed::<3>(l, a),
+        4 => cholesky_fixed::<4>(l, a),
+        5 => cholesky_fixed::<5>(l, a),
+        6 => cholesky_fixed::<6>(l, a),
+        _ => cholesky_any(l, a, n),
+    }
 }
 
+/// [`cholesky_any`] at a compile-time size, in local arrays (registers): the same arithmetic
+/// in the same order, so the same bits. (Index loops on purpose: they unroll at the constant
+/// size.)
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn cholesky_sized(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), usize> {
-    l.fill(0.0);
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= l[j * n + k] * l[j * n + k];
+fn cholesky_fixed<const N: usize>(l: &mut [f64], a: &[f64]) -> std::result::Result<(), usize> {
+    let mut u = [[0.0; N]; N];
+    for (i, row) in u.iter_mut().enumerate() {
+        row.copy_from_slice(&a[i * N..][..N]);
+    }
+    let mut inv = [0.0; N];
+    for j in 0..N {
+        for i in j..N {
+            let mut s = u[i][j];
+            for k in 0..j {
+                s -= u[i][k] * u[k][j];
+            }
+            u[i][j] = s;
         }
-        if !(d > 0.0 && d.is_finite()) {
+        let d = u[j][j];
+        inv[j] = 1.0 / d;
+        // (a subnormal pivot has no finite 1/d: not positive definite to working precision)
+        if !(d > 0.0 && d.is_finite() && inv[j].is_finite()) {
             return Err(j);
         }
-        let d = d.sqrt();
-        l[j * n + j] = d;
-        // one division per column: the column's entries below are products with 1/d
-        let inv = 1.0 / d;
-        for i in j + 1..n {
+        for i in j + 1..N {
+            u[j][i] = u[i][j] * inv[j];
+        }
+    }
+    for (i, row) in u.iter().enumerate() {
+        let out = &mut l[i * N..][..N];
+        for j in 0..N {
+            out[j] = if j <= i { row[j] * inv[j].sqrt() } else { 0.0 };
+        }
+    }
+    Ok(())
+}
+
+/// The lower Cholesky factor at any size, computed as L D L' first (Golub & Van Loan, Matrix
+/// Computations, the L D L' factorization): column j holds u_ij = a_ij − Σ_k u_ik v_jk (k < j),
+/// with the pivot d_j = u_jj and v_ij = u_ij / d_j kept in the upper triangle (at (j, i)); then
+/// l_ij = u_ij √(1/d_j). The chain from one pivot to the next runs through a division only; the
+/// square roots, which take longer, are off it.
+fn cholesky_any(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), usize> {
+    for j in 0..n {
+        for i in j..n {
             let mut s = a[i * n + j];
             for k in 0..j {
-                s -= l[i * n + k] * l[j * n + k];
+                s -= l[i * n + k] * l[k * n + j];
             }
-            l[i * n + j] = s * inv;
+            l[i * n + j] = s;
+        }
+        let d = l[j * n + j];
+        let inv = 1.0 / d;
+        if !(d > 0.0 && d.is_finite() && inv.is_finite()) {
+            return Err(j);
+        }
+        for i in j + 1..n {
+            l[j * n + i] = l[i * n + j] * inv;
+        }
+    }
+    for j in 0..n {
+        let scale = (1.0 / l[j * n + j]).sqrt();
+        for i in j..n {
+            l[i * n + j] *= scale;
+        }
+        for i in j + 1..n {
+            l[j * n + i] = 0.0;
         }
     }
     Ok(())
@@ -548,6 +604,22 @@ mod tests {
     /// kind of point set (with a centre or not) and with angles (in an optimized build the sized
     /// arms are unrolled copies; the Python tests run those against the NumPy reference).
     #[test]
+    fn cholesky_rejects_pivots_without_a_finite_reciprocal() {
+        for n in [2, 7] {
+            let mut a = vec![0.0; n * n];
+            for i in 0..n {
+                a[i * n + i] = 1.0;
+            }
+            a[n + 1] = 1e-310; // subnormal: 1/d overflows
+            let mut l = vec![0.0; n * n];
+            assert_eq!(cholesky(&mut l, &a, n), Err(1), "n = {n}");
+            a[n + 1] = 1e-300;
+            assert_eq!(cholesky(&mut l, &a, n), Ok(()), "n = {n}");
+            assert!(l.iter().all(|v| v.is_finite()));
+        }
+    }
+
+    #[test]
     fn sized_loops_give_the_bits_of_run_time_sizes() {
         let sets = [
             SigmaPoints::Merwe { alpha: 0.5, beta: 2.0, kappa: 0.0 },
@@ -569,7 +641,7 @@ mod tests {
                 }
                 let (mut l, mut l_dyn) = (vec![0.0; n * n], vec![0.0; n * n]);
                 cholesky(&mut l, &p, n).unwrap();
-                cholesky_sized(&mut l_dyn, &p, std::hint::black_box(n)).unwrap();
+                cholesky_any(&mut l_dyn, &p, std::hint::black_box(n)).unwrap();
                 assert_eq!(l, l_dyn);
                 let (mut pts, mut pts_dyn) = (vec![0.0; k * n], vec![0.0; k * n]);
                 place(&w, &x, &l, &mut pts);
