@@ -256,6 +256,33 @@ impl PointFunction for RangeBearing {
         }
         Some(Ok(()))
     }
+
+    fn eval_with_jacobian(
+        &self,
+        x: &[f64],
+        t: usize,
+        u: Option<&[f64]>,
+        value: &mut [f64],
+        jac: &mut [f64],
+    ) -> Option<Result<()>> {
+        // the range is the Jacobian's r where the squares are in range (norm2's own test)
+        let (dx, dy) = self.offset(x);
+        let r2 = dx * dx + dy * dy;
+        if !(r2 < 1e300 && r2 > 1e-300) {
+            // out of that range, or at the sensor: the two apart, with their checks
+            if let Err(e) = self.eval(x, 1, t, u, value) {
+                return Some(Err(e));
+            }
+            return self.jacobian(x, 1, t, u, jac);
+        }
+        let (n, r) = (self.n, r2.sqrt());
+        value[..2].copy_from_slice(&[r, dy.atan2(dx)]);
+        let jac = &mut jac[..2 * n];
+        jac.fill(0.0);
+        jac[..2].copy_from_slice(&[dx / r, dy / r]);
+        jac[n..n + 2].copy_from_slice(&[-dy / r2, dx / r2]);
+        Some(Ok(()))
+    }
 }
 
 #[cfg(test)]
@@ -284,6 +311,29 @@ mod tests {
                 assert!((one - many).abs() <= 1e-15 * one.abs().max(1.0), "point {i}: {one} vs {many}");
             }
         }
+    }
+
+    /// The range–bearing value and Jacobian together are the bits of `eval` and `jacobian`
+    /// apart, in and out of the squares' range; at the sensor it is the Jacobian's error.
+    #[test]
+    fn range_bearing_value_with_jacobian() {
+        let cases = [
+            ([1.0, -2.0], [3.0, 4.0, 0.5, 0.1]),
+            ([1.0, -2.0], [-1e200, 3e199, 0.0, 0.0]),
+            ([0.0, 0.0], [1e-160, -2e-160, 0.0, 0.0]),
+        ];
+        for (sensor, x) in cases {
+            let rb = RangeBearing::new(sensor, 4).unwrap();
+            let (mut value, mut jac, mut both, mut both_jac) = ([0.0; 2], [0.0; 8], [0.0; 2], [0.0; 8]);
+            rb.eval(&x, 1, 0, None, &mut value).unwrap();
+            rb.jacobian(&x, 1, 0, None, &mut jac).unwrap().unwrap();
+            rb.eval_with_jacobian(&x, 0, None, &mut both, &mut both_jac).unwrap().unwrap();
+            assert_eq!((value, jac), (both, both_jac), "{x:?}");
+        }
+        let rb = RangeBearing::new([1.0, -2.0], 4).unwrap();
+        let (mut value, mut jac) = ([0.0; 2], [0.0; 8]);
+        let at_sensor = rb.eval_with_jacobian(&[1.0, -2.0, 0.0, 0.0], 7, None, &mut value, &mut jac).unwrap();
+        assert!(at_sensor.unwrap_err().to_string().contains("range 0"));
     }
 
     /// The ω column of the turn's Jacobian is continuous across the switch to its Taylor
