@@ -137,11 +137,18 @@ fn bearings(xs: &[f64], n: usize, sensor: [f64; 2]) -> [f64; LANES] {
 #[inline]
 fn norm2(x: f64, y: f64) -> f64 {
     let sum = x * x + y * y;
-    if sum < 1e300 && sum > 1e-300 {
+    if squares_in_range(sum) {
         sum.sqrt()
     } else {
         x.hypot(y)
     }
+}
+
+/// Whether a sum of squares neither overflowed nor underflowed (far from both), so that its
+/// square root is the norm to a rounding.
+#[inline]
+fn squares_in_range(sum: f64) -> bool {
+    sum < 1e300 && sum > 1e-300
 }
 
 impl PointFunction for CoordinatedTurn {
@@ -216,6 +223,15 @@ impl RangeBearing {
     }
 }
 
+/// The range–bearing Jacobian (2 × n) at the offset `(dx, dy)` from the sensor, with r² and r:
+/// ∂r/∂p = d/r, ∂θ/∂p = (−d_y, d_x)/r², zero for the other components.
+#[inline]
+fn write_jacobian(j: &mut [f64], n: usize, (dx, dy): (f64, f64), r2: f64, r: f64) {
+    j.fill(0.0);
+    j[..2].copy_from_slice(&[dx / r, dy / r]);
+    j[n..n + 2].copy_from_slice(&[-dy / r2, dx / r2]);
+}
+
 impl PointFunction for RangeBearing {
     fn dim_in(&self) -> usize {
         self.n
@@ -249,10 +265,7 @@ impl PointFunction for RangeBearing {
                     "the range-bearing Jacobian is undefined at the sensor's position (range 0)",
                 )));
             }
-            let r = r2.sqrt();
-            j.fill(0.0);
-            j[..2].copy_from_slice(&[dx / r, dy / r]);
-            j[n..n + 2].copy_from_slice(&[-dy / r2, dx / r2]);
+            write_jacobian(&mut j[..2 * n], n, (dx, dy), r2, r2.sqrt());
         }
         Some(Ok(()))
     }
@@ -265,10 +278,10 @@ impl PointFunction for RangeBearing {
         value: &mut [f64],
         jac: &mut [f64],
     ) -> Option<Result<()>> {
-        // the range is the Jacobian's r where the squares are in range (norm2's own test)
+        // the range is the Jacobian's r where the squares are in range (as in norm2)
         let (dx, dy) = self.offset(x);
         let r2 = dx * dx + dy * dy;
-        if !(r2 < 1e300 && r2 > 1e-300) {
+        if !squares_in_range(r2) {
             // out of that range, or at the sensor: the two apart, with their checks
             if let Err(e) = self.eval(x, 1, t, u, value) {
                 return Some(Err(e));
@@ -277,10 +290,7 @@ impl PointFunction for RangeBearing {
         }
         let (n, r) = (self.n, r2.sqrt());
         value[..2].copy_from_slice(&[r, dy.atan2(dx)]);
-        let jac = &mut jac[..2 * n];
-        jac.fill(0.0);
-        jac[..2].copy_from_slice(&[dx / r, dy / r]);
-        jac[n..n + 2].copy_from_slice(&[-dy / r2, dx / r2]);
+        write_jacobian(&mut jac[..2 * n], n, (dx, dy), r2, r);
         Some(Ok(()))
     }
 }

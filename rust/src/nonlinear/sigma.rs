@@ -218,6 +218,14 @@ pub(crate) fn cholesky(l: &mut [f64], a: &[f64], n: usize) -> std::result::Resul
     }
 }
 
+/// `1/d` for a pivot that is positive and finite with a finite reciprocal (a subnormal d has
+/// none): `None` when the matrix is not positive definite to working precision.
+#[inline(always)]
+fn pivot_reciprocal(d: f64) -> Option<f64> {
+    let inv = 1.0 / d;
+    (d > 0.0 && d.is_finite() && inv.is_finite()).then_some(inv)
+}
+
 /// [`cholesky_any`] at a compile-time size, in local arrays (registers): the same arithmetic
 /// in the same order, so the same bits. (Index loops on purpose: they unroll at the constant
 /// size.)
@@ -237,12 +245,7 @@ fn cholesky_fixed<const N: usize>(l: &mut [f64], a: &[f64]) -> std::result::Resu
             }
             u[i][j] = s;
         }
-        let d = u[j][j];
-        inv[j] = 1.0 / d;
-        // (a subnormal pivot has no finite 1/d: not positive definite to working precision)
-        if !(d > 0.0 && d.is_finite() && inv[j].is_finite()) {
-            return Err(j);
-        }
+        inv[j] = pivot_reciprocal(u[j][j]).ok_or(j)?;
         for i in j + 1..N {
             u[j][i] = u[i][j] * inv[j];
         }
@@ -270,11 +273,7 @@ fn cholesky_any(l: &mut [f64], a: &[f64], n: usize) -> std::result::Result<(), u
             }
             l[i * n + j] = s;
         }
-        let d = l[j * n + j];
-        let inv = 1.0 / d;
-        if !(d > 0.0 && d.is_finite() && inv.is_finite()) {
-            return Err(j);
-        }
+        let inv = pivot_reciprocal(l[j * n + j]).ok_or(j)?;
         for i in j + 1..n {
             l[j * n + i] = l[i * n + j] * inv;
         }
@@ -600,9 +599,6 @@ mod tests {
             .collect()
     }
 
-    /// The loops compiled for small sizes give the bits of the run-time-size loops, for every
-    /// kind of point set (with a centre or not) and with angles (in an optimized build the sized
-    /// arms are unrolled copies; the Python tests run those against the NumPy reference).
     #[test]
     fn cholesky_rejects_pivots_without_a_finite_reciprocal() {
         for n in [2, 7] {
@@ -619,6 +615,9 @@ mod tests {
         }
     }
 
+    /// The loops compiled for small sizes give the bits of the run-time-size loops, for every
+    /// kind of point set (with a centre or not) and with angles (in an optimized build the sized
+    /// arms are unrolled copies; the Python tests run those against the NumPy reference).
     #[test]
     fn sized_loops_give_the_bits_of_run_time_sizes() {
         let sets = [
