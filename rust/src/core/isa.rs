@@ -221,6 +221,27 @@ pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: imp
     D::Home::run_baseline(job)
 }
 
+/// Runs `job` compiled with AVX2 where the CPU has it and the loops may use it (not
+/// [`Kernel::Baseline`] forced): for lane-wise arithmetic on short arrays (the built-in
+/// models' sines and bearings, four points at a time), which the baseline compiles to two
+/// SSE2 halves and bitwise selects. Separate multiplies and adds only, so the same bits as
+/// the baseline: deterministic mode does not need to avoid it.
+#[inline(always)]
+pub(crate) fn run_wide<R>(job: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2")]
+        unsafe fn avx2<R>(job: impl FnOnce() -> R) -> R {
+            job()
+        }
+        if kernel() != Kernel::Baseline {
+            // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
+            return unsafe { avx2(job) };
+        }
+    }
+    job()
+}
+
 /// Runs `job` — work on buffers of sizes `D` outside a [`run_best!`] loop (a streaming
 /// filter's step, a rare step out of line) — in a function of its own in `D`'s home, with
 /// FMA enabled if `D` is [`Fused`](crate::core::dims::Fused). Fused sizes are only made by

@@ -287,7 +287,7 @@ impl GaussianFilter for Ekf {
             return Ok(());
         }
         ws.gather(sensor, None);
-        ws.update(options.form, t)?;
+        ws.update(sensor, options.form, t)?;
         if options.iterations == 0 {
             return Ok(());
         }
@@ -314,7 +314,7 @@ impl GaussianFilter for Ekf {
         // P(t|t), S and K from the last linearization, with the innovation at the prediction
         // (9.16)–(9.17)
         ws.gather(sensor, None);
-        ws.update(options.form, t)?;
+        ws.update(sensor, options.form, t)?;
         ws.x_filt.copy_from_slice(x_i);
         Ok(())
     }
@@ -518,7 +518,7 @@ impl GaussianFilter for Ukf {
             return Ok(());
         }
         ws.gather(sensor, None);
-        ws.update(UpdateForm::Standard, t)?;
+        ws.update(sensor, UpdateForm::Standard, t)?;
         if let Some(sq) = sqrt {
             ws.downdate_factor(sq, t)?;
         }
@@ -800,6 +800,20 @@ fn gaussian_update(
     })
 }
 
+/// The `mo` observed blocks (e, C, S) as a measurement prediction: the whole arrays `full`
+/// when `whole`, else the leading blocks of the `gathered` ones.
+fn blocks<'a>(
+    whole: bool,
+    full: [&'a [f64]; 3],
+    [e, c, s]: [&'a [f64]; 3],
+    joseph: Option<(&'a [f64], &'a [f64])>,
+    n: usize,
+    mo: usize,
+) -> MeasurementPrediction<'a> {
+    let [innov, cross_cov, innov_cov] = if whole { full } else { [&e[..mo], &c[..n * mo], &s[..mo * mo]] };
+    MeasurementPrediction { innov, cross_cov, innov_cov, joseph }
+}
+
 /// One filter's state and step buffers (run-time sizes, allocated once per call, and again
 /// only when a streaming filter's sensor changes m).
 pub(crate) struct Step {
@@ -816,8 +830,11 @@ pub(crate) struct Step {
     s_full: Vec<f64>,
     c_full: Vec<f64>,
     innov: Vec<f64>,
-    /// The observed components and their blocks: e, C (n × mo), S, H (mo × n), R.
+    /// The observed components and their blocks: e, C (n × mo), S, H (mo × n), R -- unused
+    /// while `whole`: every component observed and e the innovation, so that the blocks are
+    /// the whole arrays (`innov`, `c_full`, `s_full`, `jac_h` and the sensor's R).
     observed: Vec<usize>,
+    whole: bool,
     e_obs: Vec<f64>,
     c_obs: Vec<f64>,
     s_obs: Vec<f64>,
@@ -854,6 +871,7 @@ impl Step {
             c_full: vec![0.0; n * m],
             innov: vec![0.0; m],
             observed: Vec::with_capacity(m),
+            whole: false,
             e_obs: vec![0.0; m],
             c_obs: vec![0.0; n * m],
             s_obs: vec![0.0; m * m],
@@ -873,7 +891,8 @@ impl Step {
     /// is then `L(t|t) L(t|t)'`.
     fn downdate_factor(&mut self, sq: &mut SqrtScratch, t: usize) -> Result<()> {
         let (n, mo) = (self.n, self.observed.len());
-        let Step { c_obs, s_obs, p_filt, factors, .. } = self;
+        let (c_obs, s_obs) = if self.whole { (&self.c_full, &self.s_full) } else { (&self.c_obs, &self.s_obs) };
+        let Step { p_filt, factors, .. } = self;
         let Some(factors) = factors else { return Ok(()) };
         let SqrtScratch { gain_root, s_factor, vector, .. } = sq;
         cholesky(s_factor, &s_obs[..mo * mo], mo).map_err(|j| Error::NotPositiveDefinite {
@@ -1009,13 +1028,8 @@ impl Step {
     fn gather(&mut self, sensor: Sensor<'_>, residual: Option<Residual<'_>>) {
         let (n, m, mo) = (self.n, self.m, self.observed.len());
         let r = sensor.r;
-        if mo == m && residual.is_none() {
-            // everything observed: the blocks are the whole arrays
-            self.h_obs.copy_from_slice(&self.jac_h);
-            self.e_obs.copy_from_slice(&self.innov);
-            self.c_obs.copy_from_slice(&self.c_full);
-            self.s_obs.copy_from_slice(&self.s_full);
-            self.r_obs.copy_from_slice(r);
+        self.whole = mo == m && residual.is_none();
+        if self.whole {
             return;
         }
         for (a, &i) in self.observed.iter().enumerate() {
@@ -1043,25 +1057,25 @@ impl Step {
 
     /// The gathered blocks as a measurement prediction for the standard form.
     fn prediction(&self) -> MeasurementPrediction<'_> {
-        let (n, mo) = (self.n, self.observed.len());
-        MeasurementPrediction {
-            innov: &self.e_obs[..mo],
-            cross_cov: &self.c_obs[..n * mo],
-            innov_cov: &self.s_obs[..mo * mo],
-            joseph: None,
-        }
+        let full = [&self.innov[..], &self.c_full, &self.s_full];
+        blocks(self.whole, full, [&self.e_obs, &self.c_obs, &self.s_obs], None, self.n, self.observed.len())
     }
 
-    /// The Gaussian update with the gathered blocks; K's observed columns from it.
-    fn update(&mut self, form: UpdateForm, t: usize) -> Result<()> {
+    /// The Gaussian update with the gathered blocks (and `sensor`'s R in the Joseph form);
+    /// K's observed columns from it.
+    fn update(&mut self, sensor: Sensor<'_>, form: UpdateForm, t: usize) -> Result<()> {
         let (n, m, mo) = (self.n, self.m, self.observed.len());
-        let Step { gauss, e_obs, c_obs, s_obs, h_obs, r_obs, x, p, x_filt, p_filt, .. } = self;
-        let pred = MeasurementPrediction {
-            innov: &e_obs[..mo],
-            cross_cov: &c_obs[..n * mo],
-            innov_cov: &s_obs[..mo * mo],
-            joseph: (form == UpdateForm::Joseph).then(|| (&h_obs[..mo * n], &r_obs[..mo * mo])),
-        };
+        let Step {
+            gauss, innov, c_full, s_full, jac_h, e_obs, c_obs, s_obs, h_obs, r_obs, x, p, x_filt, p_filt, ..
+        } = self;
+        let joseph = (form == UpdateForm::Joseph).then(|| {
+            if self.whole {
+                (&jac_h[..], sensor.r)
+            } else {
+                (&h_obs[..mo * n], &r_obs[..mo * mo])
+            }
+        });
+        let pred = blocks(self.whole, [innov, c_full, s_full], [e_obs, c_obs, s_obs], joseph, n, mo);
         gaussian_update(self.kernel, gauss, n, m, mo, &pred, (x, p), (x_filt, p_filt), t)?;
         let gain_t = self.gauss.gain_t(mo, n);
         if mo == m {

@@ -4,6 +4,7 @@
 
 use super::function::PointFunction;
 use super::trig::{self, LANES};
+use crate::core::isa::run_wide;
 use crate::error::{Error, Result};
 
 /// Coordinated turn with unknown turn rate, state (p_x, p_y, v_x, v_y, ω): the exact
@@ -104,7 +105,7 @@ fn turn(w: f64, dt: f64, (sin, cos): (f64, f64)) -> (f64, f64, f64, f64) {
 
 /// `(sin ω dt, cos ω dt)` for the up to [`LANES`] 5-state points in `xs` (ω the fifth number),
 /// computed together (one point, as in the EKF, through the C library).
-#[inline]
+#[inline(always)]
 fn turn_angles(xs: &[f64], dt: f64) -> ([f64; LANES], [f64; LANES]) {
     if xs.len() == 5 {
         let (sin, cos) = sin_cos_one(xs[4] * dt);
@@ -119,7 +120,7 @@ fn turn_angles(xs: &[f64], dt: f64) -> ([f64; LANES], [f64; LANES]) {
 
 /// The bearings `atan2(d_y, d_x)` of the up to [`LANES`] points in `xs` (rows of n) as seen
 /// from `sensor`, computed together (one point through the C library).
-#[inline]
+#[inline(always)]
 fn bearings(xs: &[f64], n: usize, sensor: [f64; 2]) -> [f64; LANES] {
     if xs.len() == n {
         return [(xs[1] - sensor[1]).atan2(xs[0] - sensor[0]); LANES];
@@ -161,22 +162,32 @@ impl PointFunction for CoordinatedTurn {
     }
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
-        for (xs, os) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 5].chunks_mut(5 * LANES)) {
-            let (sin, cos) = turn_angles(xs, self.dt);
-            for (l, (x, o)) in xs.chunks_exact(5).zip(os.chunks_exact_mut(5)).enumerate() {
-                self.value_at(x, (sin[l], cos[l]), o);
-            }
-        }
+        run_wide(
+            #[inline(always)]
+            || {
+                for (xs, os) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 5].chunks_mut(5 * LANES)) {
+                    let (sin, cos) = turn_angles(xs, self.dt);
+                    for (l, (x, o)) in xs.chunks_exact(5).zip(os.chunks_exact_mut(5)).enumerate() {
+                        self.value_at(x, (sin[l], cos[l]), o);
+                    }
+                }
+            },
+        );
         Ok(())
     }
 
     fn jacobian(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Option<Result<()>> {
-        for (xs, js) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 25].chunks_mut(25 * LANES)) {
-            let (sin, cos) = turn_angles(xs, self.dt);
-            for (l, (x, j)) in xs.chunks_exact(5).zip(js.chunks_exact_mut(25)).enumerate() {
-                self.jacobian_at(x, (sin[l], cos[l]), j);
-            }
-        }
+        run_wide(
+            #[inline(always)]
+            || {
+                for (xs, js) in points[..k * 5].chunks(5 * LANES).zip(out[..k * 25].chunks_mut(25 * LANES)) {
+                    let (sin, cos) = turn_angles(xs, self.dt);
+                    for (l, (x, j)) in xs.chunks_exact(5).zip(js.chunks_exact_mut(25)).enumerate() {
+                        self.jacobian_at(x, (sin[l], cos[l]), j);
+                    }
+                }
+            },
+        );
         Some(Ok(()))
     }
 
@@ -243,13 +254,18 @@ impl PointFunction for RangeBearing {
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
         let n = self.n;
-        for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k * 2].chunks_mut(2 * LANES)) {
-            let bearing = bearings(xs, n, self.sensor);
-            for (l, (x, o)) in xs.chunks_exact(n).zip(os.chunks_exact_mut(2)).enumerate() {
-                let (dx, dy) = self.offset(x);
-                o.copy_from_slice(&[norm2(dx, dy), bearing[l]]);
-            }
-        }
+        run_wide(
+            #[inline(always)]
+            || {
+                for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k * 2].chunks_mut(2 * LANES)) {
+                    let bearing = bearings(xs, n, self.sensor);
+                    for (l, (x, o)) in xs.chunks_exact(n).zip(os.chunks_exact_mut(2)).enumerate() {
+                        let (dx, dy) = self.offset(x);
+                        o.copy_from_slice(&[norm2(dx, dy), bearing[l]]);
+                    }
+                }
+            },
+        );
         Ok(())
     }
 
@@ -409,10 +425,15 @@ impl PointFunction for Bearing {
 
     fn eval(&self, points: &[f64], k: usize, _t: usize, _u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
         let n = self.0.n;
-        for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k].chunks_mut(LANES)) {
-            let bearing = bearings(xs, n, self.0.sensor);
-            os.copy_from_slice(&bearing[..os.len()]);
-        }
+        run_wide(
+            #[inline(always)]
+            || {
+                for (xs, os) in points[..k * n].chunks(n * LANES).zip(out[..k].chunks_mut(LANES)) {
+                    let bearing = bearings(xs, n, self.0.sensor);
+                    os.copy_from_slice(&bearing[..os.len()]);
+                }
+            },
+        );
         Ok(())
     }
 

@@ -3,7 +3,9 @@
 //! A UKF step on the coordinated-turn model with a range–bearing sensor takes a sine and
 //! cosine and an `atan2` at each of its 11 points; one at a time through the C library they
 //! were 40% of the step (Zen 4, 2026-12-05). These evaluate [`LANES`] numbers together in
-//! branch-free arithmetic that the compiler turns into vector instructions, with the
+//! branch-free lane-wise arithmetic (`V`, `Mask`) that the compiler turns into vector
+//! instructions — one AVX2 instruction per operation where the models run them in
+//! [`run_wide`](crate::core::isa::run_wide) — with the
 //! minimax polynomials of fdlibm (Sun Microsystems, 1993: `k_sin.c`, `k_cos.c`, `s_atan.c`),
 //! which are accurate to within an ulp on their reduced ranges; the tests bound the error
 //! against the C library at 2 ulp. They multiply and add separately (no fused multiply-adds),
@@ -12,6 +14,8 @@
 
 // The constants are fdlibm's, digit for digit as published (more digits than a double holds).
 #![allow(clippy::excessive_precision)]
+
+use std::array::from_fn;
 
 /// The numbers evaluated together.
 pub(crate) const LANES: usize = 4;
@@ -46,16 +50,127 @@ const SIN_COS_LIMIT: f64 = 1e5;
 /// Below this |r|, sin r = r and cos r = 1 in double precision.
 const TINY: f64 = 7.450_580_596_923_828e-9; // 2⁻²⁷
 
+/// `LANES` doubles, with lane-wise arithmetic written as loops over the lanes: a form the
+/// compiler turns into one vector instruction per operation (AVX2) or two (SSE2), where the
+/// same kernels written on one `f64` at a time were compiled to scalar code with branches
+/// under AVX2.
+#[derive(Clone, Copy)]
+struct V([f64; LANES]);
+
+/// A lane mask: all bits set where true.
+#[derive(Clone, Copy)]
+struct Mask([u64; LANES]);
+
+impl V {
+    #[inline(always)]
+    fn splat(v: f64) -> V {
+        V([v; LANES])
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(f64) -> f64) -> V {
+        V(self.0.map(f))
+    }
+
+    #[inline(always)]
+    fn zip(self, other: V, f: impl Fn(f64, f64) -> f64) -> V {
+        V(from_fn(|l| f(self.0[l], other.0[l])))
+    }
+
+    #[inline(always)]
+    fn compare(self, other: V, f: impl Fn(f64, f64) -> bool) -> Mask {
+        Mask(from_fn(|l| if f(self.0[l], other.0[l]) { u64::MAX } else { 0 }))
+    }
+
+    #[inline(always)]
+    fn abs(self) -> V {
+        self.map(f64::abs)
+    }
+
+    #[inline(always)]
+    fn bits(self) -> [u64; LANES] {
+        self.0.map(f64::to_bits)
+    }
+
+    #[inline(always)]
+    fn from_bits(bits: [u64; LANES]) -> V {
+        V(bits.map(f64::from_bits))
+    }
+
+    /// The sign bits of `sign` put on self's magnitudes.
+    #[inline(always)]
+    fn copysign(self, sign: V) -> V {
+        let (a, b) = (self.bits(), sign.bits());
+        V::from_bits(from_fn(|l| (a[l] & !SIGN) | (b[l] & SIGN)))
+    }
+
+    /// The lanes with the sign bit set (−0 and NaNs with it included).
+    #[inline(always)]
+    fn negative(self) -> Mask {
+        Mask(self.bits().map(|b| if b & SIGN != 0 { u64::MAX } else { 0 }))
+    }
+
+    /// Self with its sign flipped where `flip` has the sign bit set.
+    #[inline(always)]
+    fn flip_sign(self, flip: [u64; LANES]) -> V {
+        let a = self.bits();
+        V::from_bits(from_fn(|l| a[l] ^ (flip[l] & SIGN)))
+    }
+}
+
+const SIGN: u64 = 1 << 63;
+
+impl Mask {
+    /// `a` where the mask is set, else `b`.
+    #[inline(always)]
+    fn select(self, a: V, b: V) -> V {
+        let (a, b) = (a.bits(), b.bits());
+        V::from_bits(from_fn(|l| (a[l] & self.0[l]) | (b[l] & !self.0[l])))
+    }
+
+    #[inline(always)]
+    fn or(self, other: Mask) -> Mask {
+        Mask(from_fn(|l| self.0[l] | other.0[l]))
+    }
+
+    #[inline(always)]
+    fn all(self) -> bool {
+        self.0.iter().fold(u64::MAX, |acc, m| acc & m) != 0
+    }
+}
+
+macro_rules! lane_ops {
+    ($($trait:ident $method:ident),*) => {$(
+        impl std::ops::$trait for V {
+            type Output = V;
+            #[inline(always)]
+            fn $method(self, other: V) -> V {
+                self.zip(other, |a, b| std::ops::$trait::$method(a, b))
+            }
+        }
+        impl std::ops::$trait<V> for f64 {
+            type Output = V;
+            #[inline(always)]
+            fn $method(self, other: V) -> V {
+                std::ops::$trait::$method(V::splat(self), other)
+            }
+        }
+        impl std::ops::$trait<f64> for V {
+            type Output = V;
+            #[inline(always)]
+            fn $method(self, other: f64) -> V {
+                std::ops::$trait::$method(self, V::splat(other))
+            }
+        }
+    )*};
+}
+lane_ops!(Add add, Sub sub, Mul mul, Div div);
+
 /// `(sin x, cos x)` for each lane of `x`.
 #[inline(always)]
 pub(crate) fn sin_cos(x: [f64; LANES]) -> ([f64; LANES], [f64; LANES]) {
-    let (mut sin, mut cos) = ([0.0; LANES], [0.0; LANES]);
-    let mut fast = true;
-    for l in 0..LANES {
-        let (s, c, ok) = sin_cos_reduced(x[l]);
-        (sin[l], cos[l]) = (s, c);
-        fast &= ok;
-    }
+    let (sin, cos, fast) = sin_cos_reduced(V(x));
+    let (mut sin, mut cos) = (sin.0, cos.0);
     if !fast {
         for l in 0..LANES {
             if x[l].abs() > SIN_COS_LIMIT || x[l].is_nan() {
@@ -66,14 +181,15 @@ pub(crate) fn sin_cos(x: [f64; LANES]) -> ([f64; LANES], [f64; LANES]) {
     (sin, cos)
 }
 
-/// One lane of [`sin_cos`]: x − j π/2 = r with |r| ≤ π/4, the kernels at r, and the quadrant
-/// j mod 4 choosing which is which and their signs; `ok` false outside the fast path.
+/// [`sin_cos`] in the fast path: x − j π/2 = r with |r| ≤ π/4, the kernels at r, and the
+/// quadrant j mod 4 choosing which is which and their signs; `false` if a lane is outside the
+/// fast path.
 #[inline(always)]
-fn sin_cos_reduced(x: f64) -> (f64, f64, bool) {
-    let ok = x.abs() <= SIN_COS_LIMIT;
-    let x = if ok { x } else { 0.0 };
+fn sin_cos_reduced(x: V) -> (V, V, bool) {
+    let ok = x.abs().compare(V::splat(SIN_COS_LIMIT), |a, b| a <= b);
+    let x = ok.select(x, V::splat(0.0));
     let shifted = x * std::f64::consts::FRAC_2_PI + ROUNDER;
-    let quadrant = shifted.to_bits() & 3;
+    let quadrant = shifted.bits().map(|b| b & 3);
     let j = shifted - ROUNDER;
     let r = ((x - j * PIO2_1) - j * PIO2_2) - j * PIO2_2T;
     let z = r * r;
@@ -81,17 +197,18 @@ fn sin_cos_reduced(x: f64) -> (f64, f64, bool) {
     // fdlibm's __kernel_sin and __kernel_cos (no tail)
     let poly_s = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
     // (r itself where r is tiny, as fdlibm: the sign of a zero kept)
-    let s = if r.abs() < TINY { r } else { r + z * r * (S1 + z * poly_s) };
+    let tiny = r.abs().compare(V::splat(TINY), |a, b| a < b);
+    let s = tiny.select(r, r + z * r * (S1 + z * poly_s));
     let poly_c = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
     let half_z = 0.5 * z;
     let one_minus = 1.0 - half_z;
     let c = one_minus + (((1.0 - one_minus) - half_z) + z * poly_c);
-    let swap = quadrant & 1 == 1;
-    let (sin, cos) = if swap { (c, s) } else { (s, c) };
+    let swap = Mask(quadrant.map(|q| if q & 1 == 1 { u64::MAX } else { 0 }));
+    let (sin, cos) = (swap.select(c, s), swap.select(s, c));
     // sin changes sign in quadrants 2 and 3, cos in 1 and 2
-    let sin_sign = (quadrant & 2) << 62;
-    let cos_sign = ((quadrant + 1) & 2) << 62;
-    (f64::from_bits(sin.to_bits() ^ sin_sign), f64::from_bits(cos.to_bits() ^ cos_sign), ok)
+    let sin_sign = quadrant.map(|q| (q & 2) << 62);
+    let cos_sign = quadrant.map(|q| ((q + 1) & 2) << 62);
+    (sin.flip_sign(sin_sign), cos.flip_sign(cos_sign), ok.all())
 }
 
 const AT: [f64; 11] = [
@@ -117,16 +234,11 @@ const PI: (f64, f64) = (std::f64::consts::PI, 1.224_646_799_147_353_207_17e-16);
 /// `atan2(y, x)` for each lane, in (−π, π] as the C library's.
 #[inline(always)]
 pub(crate) fn atan2(y: [f64; LANES], x: [f64; LANES]) -> [f64; LANES] {
-    let mut out = [0.0; LANES];
-    let mut fast = true;
-    for l in 0..LANES {
-        let (a, ok) = atan2_reduced(y[l], x[l]);
-        out[l] = a;
-        fast &= ok;
-    }
-    if !fast {
+    let (angle, ok) = atan2_reduced(V(y), V(x));
+    let mut out = angle.0;
+    if !ok.all() {
         for l in 0..LANES {
-            if !atan2_reduced(y[l], x[l]).1 {
+            if ok.0[l] == 0 {
                 out[l] = y[l].atan2(x[l]);
             }
         }
@@ -134,41 +246,35 @@ pub(crate) fn atan2(y: [f64; LANES], x: [f64; LANES]) -> [f64; LANES] {
     out
 }
 
-/// One lane of [`atan2`]: t = min(|x|, |y|) / max(|x|, |y|) ∈ [0, 1], atan t by fdlibm's
-/// reduction (t < 7/16: itself; < 11/16: atan ½ + atan((2t − 1)/(2 + t)); else atan 1 +
-/// atan((t − 1)/(t + 1))) and polynomial, then the octant and the sign of y; `ok` false where
-/// t is not a number (NaN arguments, both zero, both infinite).
+/// [`atan2`] in the fast path: t = min(|x|, |y|) / max(|x|, |y|) ∈ [0, 1], atan t by
+/// fdlibm's reduction (t < 7/16: itself; < 11/16: atan ½ + atan((2t − 1)/(2 + t)); else
+/// atan 1 + atan((t − 1)/(t + 1))) and polynomial, then the octant and the sign of y; and
+/// the lanes where t is a number (not for NaN arguments, both zero or both infinite).
 #[inline(always)]
-fn atan2_reduced(y: f64, x: f64) -> (f64, bool) {
+fn atan2_reduced(y: V, x: V) -> (V, Mask) {
     let (ax, ay) = (x.abs(), y.abs());
-    let steep = ay > ax;
-    let (num, den) = if steep { (ax, ay) } else { (ay, ax) };
+    let steep = ay.compare(ax, |a, b| a > b);
+    let (num, den) = (steep.select(ax, ay), steep.select(ay, ax));
     let t = num / den;
-    let ok = t <= 1.0;
-    let t = if ok { t } else { 0.0 };
-    let (middle, upper) = ((7.0 / 16.0..11.0 / 16.0).contains(&t), t >= 11.0 / 16.0);
-    let (top, bottom) = if upper {
-        (t - 1.0, t + 1.0)
-    } else if middle {
-        (2.0 * t - 1.0, 2.0 + t)
-    } else {
-        (t, 1.0)
-    };
+    let ok = t.compare(V::splat(1.0), |a, b| a <= b);
+    let t = ok.select(t, V::splat(0.0));
+    let upper = t.compare(V::splat(11.0 / 16.0), |a, b| a >= b);
+    let middle = t.compare(V::splat(7.0 / 16.0), |a, b| a >= b);
+    let top = upper.select(t - 1.0, middle.select(2.0 * t - 1.0, t));
+    let bottom = upper.select(t + 1.0, middle.select(2.0 + t, V::splat(1.0)));
     let v = top / bottom;
     let z = v * v;
     let w = z * z;
     let s1 = z * (AT[0] + w * (AT[2] + w * (AT[4] + w * (AT[6] + w * (AT[8] + w * AT[10])))));
     let s2 = w * (AT[1] + w * (AT[3] + w * (AT[5] + w * (AT[7] + w * AT[9]))));
-    let (hi, lo) = if upper { ATAN_ONE } else { ATAN_HALF };
+    let hi = upper.select(V::splat(ATAN_ONE.0), V::splat(ATAN_HALF.0));
+    let lo = upper.select(V::splat(ATAN_ONE.1), V::splat(ATAN_HALF.1));
     let reduced = hi - ((v * (s1 + s2) - lo) - v);
-    let atan_t = if upper || middle { reduced } else { v - v * (s1 + s2) };
+    let atan_t = middle.or(upper).select(reduced, v - v * (s1 + s2));
     // the angle of (|x|, |y|) turned to x's side: π − atan t (flat) or π/2 ± atan t (steep)
-    let atan_t = if x.is_sign_negative() { -atan_t } else { atan_t };
-    let angle = match (steep, x.is_sign_negative()) {
-        (true, _) => PIO2.0 - (atan_t - PIO2.1),
-        (false, true) => PI.0 + (atan_t + PI.1),
-        (false, false) => atan_t,
-    };
+    let atan_t = atan_t.flip_sign(x.bits());
+    let flat = x.negative().select(PI.0 + (atan_t + PI.1), atan_t);
+    let angle = steep.select(PIO2.0 - (atan_t - PIO2.1), flat);
     (angle.copysign(y), ok)
 }
 
@@ -251,6 +357,24 @@ mod tests {
             }
         }
         assert!(worst <= 2, "{worst} ulp");
+    }
+
+    #[test]
+    fn vector_instruction_sets_give_the_same_bits() {
+        // the models run these compiled for AVX2 where the CPU has it (isa::run_wide)
+        let a: Vec<f64> = numbers(21, 40_000).map(|u| (2.0 * u - 1.0) * 50.0).collect();
+        for chunk in a.chunks_exact(2 * LANES) {
+            let (y, x): ([f64; LANES], [f64; LANES]) =
+                (chunk[..LANES].try_into().unwrap(), chunk[LANES..].try_into().unwrap());
+            let baseline = (sin_cos(x), atan2(y, x));
+            let wide = crate::core::isa::run_wide(
+                #[inline(always)]
+                || (sin_cos(x), atan2(y, x)),
+            );
+            let bits =
+                |((s, c), a): (([f64; LANES], [f64; LANES]), [f64; LANES])| [s, c, a].map(|v| v.map(f64::to_bits));
+            assert_eq!(bits(baseline), bits(wide), "at {x:?}, {y:?}");
+        }
     }
 
     #[test]
