@@ -891,11 +891,9 @@ impl Step {
     /// is then `L(t|t) L(t|t)'`.
     fn downdate_factor(&mut self, sq: &mut SqrtScratch, t: usize) -> Result<()> {
         let (n, mo) = (self.n, self.observed.len());
-        let (c_obs, s_obs) = if self.whole { (&self.c_full, &self.s_full) } else { (&self.c_obs, &self.s_obs) };
-        let Step { p_filt, factors, .. } = self;
-        let Some(factors) = factors else { return Ok(()) };
         let SqrtScratch { gain_root, s_factor, vector, .. } = sq;
-        cholesky(s_factor, &s_obs[..mo * mo], mo).map_err(|j| Error::NotPositiveDefinite {
+        let observed = self.prediction();
+        cholesky(s_factor, observed.innov_cov, mo).map_err(|j| Error::NotPositiveDefinite {
             what: "S",
             step: t,
             problem: format!("pivot {j} of its Cholesky factor is not positive"),
@@ -903,13 +901,14 @@ impl Step {
         // each row of U solves L_S u' = c' (forward substitution)
         for i in 0..n {
             for a in 0..mo {
-                let mut v = c_obs[i * mo + a];
+                let mut v = observed.cross_cov[i * mo + a];
                 for b in 0..a {
                     v -= s_factor[a * mo + b] * gain_root[i * mo + b];
                 }
                 gain_root[i * mo + a] = v / s_factor[a * mo + a];
             }
         }
+        let Step { p_filt, factors: Some(factors), .. } = self else { return Ok(()) };
         factors.filt.copy_from_slice(&factors.pred);
         for a in 0..mo {
             for i in 0..n {

@@ -169,11 +169,11 @@ lane_ops!(Add add, Sub sub, Mul mul, Div div);
 /// `(sin x, cos x)` for each lane of `x`.
 #[inline(always)]
 pub(crate) fn sin_cos(x: [f64; LANES]) -> ([f64; LANES], [f64; LANES]) {
-    let (sin, cos, fast) = sin_cos_reduced(V(x));
+    let (sin, cos, ok) = sin_cos_reduced(V(x));
     let (mut sin, mut cos) = (sin.0, cos.0);
-    if !fast {
+    if !ok.all() {
         for l in 0..LANES {
-            if x[l].abs() > SIN_COS_LIMIT || x[l].is_nan() {
+            if ok.0[l] == 0 {
                 (sin[l], cos[l]) = x[l].sin_cos();
             }
         }
@@ -182,10 +182,9 @@ pub(crate) fn sin_cos(x: [f64; LANES]) -> ([f64; LANES], [f64; LANES]) {
 }
 
 /// [`sin_cos`] in the fast path: x − j π/2 = r with |r| ≤ π/4, the kernels at r, and the
-/// quadrant j mod 4 choosing which is which and their signs; `false` if a lane is outside the
-/// fast path.
+/// quadrant j mod 4 choosing which is which and their signs; and the lanes in the fast path.
 #[inline(always)]
-fn sin_cos_reduced(x: V) -> (V, V, bool) {
+fn sin_cos_reduced(x: V) -> (V, V, Mask) {
     let ok = x.abs().compare(V::splat(SIN_COS_LIMIT), |a, b| a <= b);
     let x = ok.select(x, V::splat(0.0));
     let shifted = x * std::f64::consts::FRAC_2_PI + ROUNDER;
@@ -208,7 +207,7 @@ fn sin_cos_reduced(x: V) -> (V, V, bool) {
     // sin changes sign in quadrants 2 and 3, cos in 1 and 2
     let sin_sign = quadrant.map(|q| (q & 2) << 62);
     let cos_sign = quadrant.map(|q| ((q + 1) & 2) << 62);
-    (sin.flip_sign(sin_sign), cos.flip_sign(cos_sign), ok.all())
+    (sin.flip_sign(sin_sign), cos.flip_sign(cos_sign), ok)
 }
 
 const AT: [f64; 11] = [
