@@ -309,6 +309,15 @@ def main(argv=None):
         ct_batch, rb_batch, ct.Q, R, n=5, jac_f=lambda X, t, u: np.array([ct_jac_one(x) for x in X]),
         jac_h=lambda X, t, u: np.array([rb_jac_one(x) for x in X]), angles=[1],
     )
+    # kfast's own cost per step with a Python model: the same filter on a model that does
+    # nothing, beside the bench's NumPy model alone (f and h at the 11 points of a step)
+    identity = kfast.NonlinearModel(lambda X, t, u: X, lambda X, t, u: X[:, :2], ct.Q, R, n=5, angles=[1])
+    points11 = np.tile(X0, (11, 1))
+
+    def model_alone():
+        for t in range(T_py):
+            rb_batch(ct_batch(points11, t, None), t, None)
+
     compiled = compiled_model(ct)
     jitted, differenced = numba_model(ct) or (None, None)
     merwe = kfast.sigma.merwe(0.5, 2.0, 0.0)
@@ -323,6 +332,8 @@ def main(argv=None):
             Contender("kfast compiled C (cfunc path)", lambda: compiled.ukf(y, X0, P0, points=merwe, outputs=out), T),
             Contender("kfast numba cfunc", lambda: jitted.ukf(y, X0, P0, points=merwe, outputs=out), T),
             Contender("kfast Python callable", lambda: python.ukf(y[:T_py], X0, P0, points=merwe, outputs=out), T_py),
+            Contender("  of which the NumPy model alone (f, h at 11 points)", model_alone, T_py),
+            Contender("  kfast Python callable, a model doing nothing", lambda: identity.ukf(y[:T_py], X0, P0, points=merwe, outputs=out), T_py),
             Contender("filterpy UKF", filterpy_ukf(ct, y[:T_peer]), T_peer),
             Contender("dynamax UKF", None, T),  # these run in the peer venv (run_peers)
             Contender("Stone Soup UKF", None, T_peer),
