@@ -33,6 +33,7 @@ from kfast.linear.model import (
 
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
+from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.linear.batch import BatchResult, filter_batch
@@ -58,6 +59,7 @@ __all__ = [
     "UnscentedKalmanFilter",
     "FilterResult",
     "SmootherResult",
+    "ParticleResult",
     "FixedLagResult",
     "FixedPointResult",
     "Forecast",

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kfast.linear.model import LinearGaussian as _Model
-from kfast._typing import DareMethod, Form, Iteration, UkfForm
+from kfast._typing import DareMethod, Form, Iteration, Keep, Resample, UkfForm
 
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the
 # package converts array-likes first); the streaming objects take array-likes themselves.
@@ -186,6 +186,18 @@ class NonlinearModel:
         iterations: int = 0,
         iteration: Iteration = "book",
         order: int = 1,
+    ) -> dict[str, Any]: ...
+    def particle_filter(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        n_particles: int,
+        resample: Resample = "multinomial",
+        ess_threshold: Optional[float] = None,
+        seed: int = 0,
+        keep: Optional[Keep] = None,
+        u: Optional[NDArray[np.float64]] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,

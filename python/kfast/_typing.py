@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Iterable, Literal, Union
 
-__all__ = ["Form", "UkfForm", "Iteration", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
+__all__ = ["Form", "UkfForm", "Iteration", "Resample", "Keep", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
 
 Form = Literal["joseph", "standard"]
 UkfForm = Literal["standard", "sqrt"]
@@ -13,6 +13,12 @@ UkfForm = Literal["standard", "sqrt"]
 
 Iteration = Literal["book", "gauss-newton"]
 """How the iterated EKF relinearizes: Söderström's (9.12)-(9.17) or Gauss-Newton (Bell & Cathey)."""
+
+Resample = Literal["multinomial", "systematic", "stratified", "residual"]
+"""The particle filter's resampling schemes."""
+
+Keep = Literal["last", "all"]
+"""Which steps' particles ``particle_filter(..., keep=...)`` returns."""
 
 DareMethod = Literal["doubling", "newton", "iteration", "eigen"]
 """The algorithms of ``solve_discrete_are``."""

@@ -12,8 +12,9 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64, frozen_copy
-from kfast._typing import FilterOutputs, Form, Iteration, UkfForm
+from kfast._typing import FilterOutputs, Form, Iteration, Keep, Resample, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
+from kfast.nonlinear.particle import ParticleResult
 from kfast.sigma import SigmaPoints, merwe
 
 if TYPE_CHECKING:
@@ -344,6 +345,81 @@ class NonlinearModel:
         smoothed = {k: out.pop(k) for k in ("x_smooth", "P_smooth", "P_lag1")}
         return SmootherResult(filter=FilterResult(**out), **smoothed)
 
+    def particle_filter(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        n_particles: int,
+        resample: Resample = "multinomial",
+        ess_threshold: Optional[float] = None,
+        seed: int = 0,
+        u: Optional[ArrayLike] = None,
+        keep: Optional[Keep] = None,
+    ) -> ParticleResult:
+        """The particle filter: sequential importance resampling with the model as proposal
+        (the bootstrap filter of Söderström (9.89)-(9.100)).
+
+        M = ``n_particles`` particles are drawn from the prior N(x0, P0). At each step t::
+
+            l_i      = log p(y(t) | x_i) = log N(y(t); h(x_i), R)     (observed components)
+            loglik_t = log sum_i W_i exp(l_i)                         (W: the carried weights)
+            W_i      <- W_i exp(l_i) / exp(loglik_t)                  (9.94), in logs
+            x(t|t)   = sum_i W_i x_i,  P(t|t) = sum_i W_i (x_i - x(t|t))(.)'    (9.99)-(9.100)
+
+        then the particles are resampled (every step, or when the effective sample size
+        1 / sum W_i^2 falls below ``ess_threshold`` * M) and moved by the model,
+        x_i <- f(x_i, t, u) + w_i with w_i ~ N(0, Q) (or g(x_i) w_i, or f(x_i, w_i) with
+        ``noise_input``). Angles among the outputs have their residuals wrapped. f and h are
+        called once per step for all M particles.
+
+        Parameters
+        ----------
+        y : array_like, shape (T, m), or (T,) when m = 1
+            Observations; NaN marks a missing value (the weights use the observed components; a
+            step with nothing observed keeps its weights).
+        x0, P0 : array_like
+            The prior x(0|-1) ~ N(x0, P0) the particles are drawn from (P0 may be singular).
+        n_particles : int
+            M, at least 1. Memory: a few arrays of M x n numbers.
+        resample : {"multinomial", "systematic", "stratified", "residual"}
+            How the ancestors are drawn; every scheme copies particle i M W_i times in
+            expectation. "multinomial" is the book's ((9.95)-(9.97)); "systematic" usually has
+            the least variance.
+        ess_threshold : float in (0, 1], optional
+            None (the book): resample after every update. A fraction tau: resample when
+            ESS < tau M (0.5 is common).
+        seed : int
+            The seed of kfast's own generator, 0 <= seed < 2**64: a draw depends only on the
+            seed, the step and the particle, so the same seed gives the same numbers.
+        u : array_like, shape (T, k), optional
+            Inputs, passed to f and h as u[t].
+        keep : {None, "last", "all"}
+            Also return the particles and their log-weights of the last step or of every step.
+
+        Returns
+        -------
+        ParticleResult
+            ``x_filt``, ``P_filt``, ``ess``, ``resampled``, ``loglik`` (whose exponential is an
+            unbiased estimate of p(y), with adaptive resampling too), ``loglik_t``.
+
+        Raises
+        ------
+        KfastError
+            Bad arguments; f, h or g returning a non-finite value (naming it and the step); no
+            particle explaining y(t) (every likelihood 0: more particles or a wider R).
+        """
+        resample = cast(Resample, choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")))
+        if keep is not None:
+            keep = cast(Keep, choice("keep", keep, ("last", "all")))
+        threshold = None if ess_threshold is None else _fraction("ess_threshold", ess_threshold)
+        args = self._data(y, x0, P0, u)
+        out = self._core.particle_filter(
+            *args[:3], index("n_particles", n_particles), resample=resample, ess_threshold=threshold,
+            seed=_seed(seed), keep=keep, u=args[3],
+        )
+        return ParticleResult(**out)
+
     def _points(self, points: Optional[SigmaPoints]) -> SigmaPoints:
         points = merwe() if points is None else points
         if not isinstance(points, SigmaPoints):
@@ -376,6 +452,28 @@ class NonlinearModel:
 C_SIGNATURE = "void (const double *X, intptr_t k, intptr_t n, int64_t t, const double *u, double *out)"
 """The C signature of a compiled f or h: the k points X (k x n, row-major), the step t, the input
 row u (NULL without inputs, else the model's input width) and the k x m results in out."""
+
+
+def _fraction(name: str, value: object) -> float:
+    """A number in (0, 1]."""
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise _kfast.KfastError(f"{name}: expected a number in (0, 1], got {value!r}")
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError, OverflowError):
+        raise _kfast.KfastError(f"{name}: expected a number in (0, 1], got {value!r}") from None
+    if not 0 < number <= 1:
+        raise _kfast.KfastError(f"{name}: must be in (0, 1], got {value!r}")
+    return number
+
+
+def _seed(seed: object) -> int:
+    """An integer 0 <= seed < 2**64."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise _kfast.KfastError(f"seed: expected an integer, got {seed!r}")
+    if not 0 <= seed < 2**64:
+        raise _kfast.KfastError(f"seed: must be in [0, 2**64), got {seed}")
+    return int(seed)
 
 
 def _spec(name: str, fn: Any) -> Any:

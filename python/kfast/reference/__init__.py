@@ -55,3 +55,7 @@ __all__ += [
 from kfast.reference import nonlinear  # noqa: E402  (EKF, UKF and their smoothers: kfast.reference.nonlinear)
 
 __all__ += ["nonlinear"]
+
+from kfast.reference.particle import particle_filter  # noqa: E402
+
+__all__ += ["particle_filter"]

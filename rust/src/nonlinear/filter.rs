@@ -597,7 +597,7 @@ fn evaluate(
 
 /// An error naming `name` and step `t` at the first non-finite number in `values`, the message
 /// starting with `what` ("returned a", "its Jacobian has a", ...).
-fn check_finite(name: &'static str, t: usize, values: &[f64], what: &str) -> Result<()> {
+pub(crate) fn check_finite(name: &'static str, t: usize, values: &[f64], what: &str) -> Result<()> {
     match values.iter().find(|v| !v.is_finite()) {
         Some(v) => Err(Error::arg_at(name, t, format!("{what} non-finite value ({v})"))),
         None => Ok(()),

@@ -12,13 +12,16 @@
 //! whole series into [`FilterOutputs`](crate::FilterOutputs), the linear filter's outputs;
 //! [`ekf_batch`] and [`ukf_batch`] run many series at once, in parallel;
 //! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass;
-//! [`NonlinearKalmanFilter`] runs either filter one step at a time.
+//! [`NonlinearKalmanFilter`] runs either filter one step at a time; [`particle_filter`] (with
+//! [`ParticleOptions`] and a [`Resampling`] scheme) is the sequential Monte Carlo filter of
+//! the same model.
 
 mod batch;
 mod filter;
 mod function;
 mod model;
 pub mod models;
+mod particle;
 mod sigma;
 mod smoother;
 mod square_root;
@@ -29,6 +32,9 @@ pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor, UkfForm, UkfOptions};
 pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use model::NonlinearModel;
+pub use particle::{
+    particle_filter, particle_filter_into, ParticleOptions, ParticleOutputs, ParticleResult, Resampling,
+};
 pub use sigma::{CustomPoints, SigmaPoints};
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};
 pub use streaming::NonlinearKalmanFilter;

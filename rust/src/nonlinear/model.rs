@@ -54,6 +54,14 @@ enum ProcessNoise {
     Input,
 }
 
+/// How w enters x[t+1], for drawing it: `f(x) + w`, `f(x) + g(x) w` or `f(x, w)`.
+#[derive(Clone, Copy)]
+pub(crate) enum NoiseEntry<'a> {
+    Additive,
+    Gain(&'a dyn PointFunction),
+    Input,
+}
+
 /// The time update's model at one step: f and the covariance of its noise.
 #[derive(Clone, Copy)]
 pub(crate) struct Transition<'a> {
@@ -233,6 +241,22 @@ impl NonlinearModel {
         mul::<Dyn>(&mut scratch.gq, &scratch.gain, q, n, r, r);
         mul_bt_sym::<Dyn>(&mut scratch.noise, &scratch.gq, &scratch.gain, n, r);
         Ok(Transition { f, q: &scratch.noise, noise_inputs: 0 })
+    }
+
+    /// How the process noise of step t enters, for a filter that draws it (the particle
+    /// filter): with the covariance Q(t) of w (n × n, or r × r with a gain or as an input).
+    pub(crate) fn process_noise(&self, t: usize) -> (NoiseEntry<'_>, &[f64]) {
+        let entry = match &self.noise {
+            ProcessNoise::Additive => NoiseEntry::Additive,
+            ProcessNoise::Gain(g) => NoiseEntry::Gain(&**g),
+            ProcessNoise::Input => NoiseEntry::Input,
+        };
+        (entry, self.q.at(t))
+    }
+
+    /// f (taking n numbers, or n + r when the noise is an input).
+    pub(crate) fn transition_function(&self) -> &dyn PointFunction {
+        &*self.f
     }
 
     /// Whether the model has a noise gain g.

@@ -457,6 +457,85 @@ impl PyNonlinearModel {
         })
     }
 
+    /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
+    /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn particle_filter<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        n_particles: usize,
+        resample: &str,
+        ess_threshold: Option<f64>,
+        seed: u64,
+        keep: Option<&str>,
+        u: Option<Array<'py>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let options = nonlinear::ParticleOptions {
+            particles: n_particles,
+            resampling: nonlinear::Resampling::from_name(resample)?,
+            ess_threshold,
+            seed,
+        };
+        let (y, u) = series(&y, u.as_ref())?;
+        let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
+        let (n, steps) = (self.inner.n_states(), y.steps());
+        let kept_steps = match keep {
+            None => 0,
+            Some("last") => 1,
+            Some("all") => steps,
+            Some(other) => {
+                return Err(KfastError::new_err(format!("keep: expected None, \"last\" or \"all\", got {other:?}")))
+            }
+        };
+        crate::core::alloc::check_f64_arrays(
+            "n_particles",
+            &[&[kept_steps, n_particles, n + 1], &[steps, n + 1, n + 1]],
+        )?;
+        let mut x_filt = vec![0.0; steps * n];
+        let mut p_filt = vec![0.0; steps * n * n];
+        let (mut ess, mut resampled, mut loglik_t) = (vec![0.0; steps], vec![false; steps], vec![0.0; steps]);
+        let mut particles = vec![0.0; kept_steps * n_particles * n];
+        let mut log_weights = vec![0.0; kept_steps * n_particles];
+        let model = &self.inner;
+        let loglik = py.detach(|| {
+            let out = nonlinear::ParticleOutputs {
+                x_filt: &mut x_filt,
+                p_filt: &mut p_filt,
+                ess: &mut ess,
+                resampled: &mut resampled,
+                loglik_t: &mut loglik_t,
+                particles: (kept_steps > 0).then_some(&mut particles[..]),
+                log_weights: (kept_steps > 0).then_some(&mut log_weights[..]),
+            };
+            nonlinear::particle_filter_into(model, y, u, x0, p0, options, out)
+        })?;
+        let dict = PyDict::new(py);
+        let shaped = |v: Vec<f64>, shape: &[usize]| -> PyResult<Bound<'py, PyAny>> {
+            Ok(v.into_pyarray(py).reshape(shape.to_vec())?.into_any())
+        };
+        dict.set_item("x_filt", shaped(x_filt, &[steps, n])?)?;
+        dict.set_item("P_filt", shaped(p_filt, &[steps, n, n])?)?;
+        dict.set_item("ess", ess.into_pyarray(py))?;
+        dict.set_item("resampled", resampled.into_pyarray(py))?;
+        dict.set_item("loglik_t", loglik_t.into_pyarray(py))?;
+        dict.set_item("loglik", loglik)?;
+        if let Some(keep) = keep {
+            let (p_shape, w_shape) = if keep == "last" {
+                (vec![n_particles, n], vec![n_particles])
+            } else {
+                (vec![steps, n_particles, n], vec![steps, n_particles])
+            };
+            dict.set_item("particles", shaped(particles, &p_shape)?)?;
+            dict.set_item("log_weights", shaped(log_weights, &w_shape)?)?;
+        }
+        Ok(dict)
+    }
+
     /// The EKF (`method="ekf"`) or UKF (`"ukf"`, with `points`) of many series at once: a dict
     /// with x_filt (B, T, n), P_filt (B, T, n, n; absent without covariances) and loglik (B,).
     #[pyo3(signature = (Y, x0, P0, method, points, u=None, return_covs=true, threads=None, form="joseph", iterations=0, iteration="book", order=1))]

@@ -1,0 +1,13 @@
+//! Particle filters for the [`NonlinearModel`](super::NonlinearModel): the book's bootstrap
+//! filter (Söderström (9.89)–(9.100)) and sequential importance resampling with the
+//! resampling schemes of [`Resampling`], triggered every step or by the effective sample size.
+//!
+//! Random numbers come from kfast's own counter-based generator (`random`), so a run is fixed
+//! by its seed.
+
+mod filter;
+mod random;
+mod resample;
+
+pub use filter::{particle_filter, particle_filter_into, ParticleOptions, ParticleOutputs, ParticleResult};
+pub use resample::Resampling;
