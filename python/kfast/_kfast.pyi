@@ -198,6 +198,7 @@ class NonlinearModel:
         seed: int = 0,
         keep: Optional[Keep] = None,
         u: Optional[NDArray[np.float64]] = None,
+        threads: Optional[int] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,

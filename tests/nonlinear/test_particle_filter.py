@@ -118,9 +118,11 @@ def test_converges_to_the_kalman_filter_on_a_linear_model(scheme):
     errors = []
     for M in (200, 20_000):
         pf = nm.particle_filter(c.y, c.x0, c.P0, M, resample=scheme, ess_threshold=0.5, seed=1)
-        # the error of a weighted mean is about sqrt(P / ESS): allow 5 such standard errors
+        # the error of a weighted mean is about sqrt(P / ESS) -- up to 3 times that after
+        # resampling, whose duplicates make the ESS of the weights overstate the independent
+        # particles (measured over 40 seeds on the Rust test's model): allow 5 times 3
         se = np.sqrt(np.einsum("tii->ti", kf["P_filt"]) / pf.ess[:, None])
-        assert np.all(np.abs(pf.x_filt - kf["x_filt"]) < 5 * se + 1e-12)
+        assert np.all(np.abs(pf.x_filt - kf["x_filt"]) < 15 * se)
         errors.append(np.abs(pf.x_filt - kf["x_filt"]).max())
         np.testing.assert_allclose(pf.P_filt, kf["P_filt"], rtol=5 / np.sqrt(M) * 10, atol=1e-3)
     assert errors[1] < errors[0]
@@ -222,3 +224,40 @@ def test_errors_during_the_run_name_the_function_and_step():
     before = data.copy()
     nm.particle_filter(data, [0.0], [[1.0]], 10)
     np.testing.assert_array_equal(data, before)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_the_same_bits_for_any_thread_count(scheme):
+    # 10,007 particles: several blocks, the last one short
+    _, y = simulate_ungm(15, seed=5)
+    nm = kfast.models.ungm()
+    runs = [nm.particle_filter(y, [0.0], [[5.0]], 10_007, resample=scheme, ess_threshold=0.6, seed=4, threads=k) for k in (1, 2, 3, None)]
+    for other in runs[1:]:
+        for k in ("x_filt", "P_filt", "ess", "loglik_t", "resampled"):
+            np.testing.assert_array_equal(getattr(other, k), getattr(runs[0], k), err_msg=k)
+
+
+def test_a_compiled_model_equals_the_python_callable():
+    import numba  # a test extra (kfast[test])
+    from numba import types
+
+    sig = types.void(types.CPointer(types.float64), types.intp, types.intp, types.int64, types.CPointer(types.float64), types.CPointer(types.float64))
+
+    @numba.cfunc(sig)
+    def f(X, k, n, t, u, out):
+        for i in range(k):
+            x = X[i]
+            out[i] = x / 2 + 25 * x / (1 + x * x) + 8 * np.cos(1.2 * t)
+
+    @numba.cfunc(sig)
+    def h(X, k, n, t, u, out):
+        for i in range(k):
+            out[i] = X[i] * X[i] / 20
+
+    _, y = simulate_ungm(20, seed=6)
+    compiled = kfast.NonlinearModel(f, h, [[10.0]], [[1.0]], n=1)
+    python = kfast.NonlinearModel(ungm_f, ungm_h, [[10.0]], [[1.0]], n=1)
+    got = compiled.particle_filter(y, [0.0], [[5.0]], 9000, resample="residual", seed=1)
+    want = python.particle_filter(y, [0.0], [[5.0]], 9000, resample="residual", seed=1)
+    np.testing.assert_allclose(got.x_filt, want.x_filt, rtol=1e-9, atol=1e-9)
+    assert got.loglik == pytest.approx(want.loglik, rel=1e-10)

@@ -356,6 +356,7 @@ class NonlinearModel:
         seed: int = 0,
         u: Optional[ArrayLike] = None,
         keep: Optional[Keep] = None,
+        threads: Optional[int] = None,
     ) -> ParticleResult:
         """The particle filter: sequential importance resampling with the model as proposal
         (the bootstrap filter of Söderström (9.89)-(9.100)).
@@ -396,6 +397,10 @@ class NonlinearModel:
             Inputs, passed to f and h as u[t].
         keep : {None, "last", "all"}
             Also return the particles and their log-weights of the last step or of every step.
+        threads : int, optional
+            Threads for the particle loops (all cores by default; one for Python callables,
+            which hold the GIL). The particles are processed in blocks of a fixed size and the
+            blocks' sums added in order, so the result is the same bits for any thread count.
 
         Returns
         -------
@@ -416,7 +421,7 @@ class NonlinearModel:
         args = self._data(y, x0, P0, u)
         out = self._core.particle_filter(
             *args[:3], index("n_particles", n_particles), resample=resample, ess_threshold=threshold,
-            seed=_seed(seed), keep=keep, u=args[3],
+            seed=_seed(seed), keep=keep, u=args[3], threads=None if threads is None else index("threads", threads),
         )
         return ParticleResult(**out)
 

@@ -172,11 +172,15 @@ pub(crate) mod par {
 
     /// rayon's slice methods, sequential.
     pub trait ParSlice<T> {
+        fn par_chunks(&self, size: usize) -> std::slice::Chunks<'_, T>;
         fn par_chunks_mut(&mut self, size: usize) -> std::slice::ChunksMut<'_, T>;
         fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T>;
     }
 
     impl<T> ParSlice<T> for [T] {
+        fn par_chunks(&self, size: usize) -> std::slice::Chunks<'_, T> {
+            self.chunks(size)
+        }
         fn par_chunks_mut(&mut self, size: usize) -> std::slice::ChunksMut<'_, T> {
             self.chunks_mut(size)
         }

@@ -459,7 +459,7 @@ impl PyNonlinearModel {
 
     /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
     /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
-    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None))]
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn particle_filter<'py>(
@@ -474,12 +474,14 @@ impl PyNonlinearModel {
         seed: u64,
         keep: Option<&str>,
         u: Option<Array<'py>>,
+        threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let options = nonlinear::ParticleOptions {
             particles: n_particles,
             resampling: nonlinear::Resampling::from_name(resample)?,
             ess_threshold,
             seed,
+            threads,
         };
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;

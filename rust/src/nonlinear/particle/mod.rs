@@ -5,6 +5,7 @@
 //! Random numbers come from kfast's own counter-based generator (`random`), so a run is fixed
 //! by its seed.
 
+mod cloud;
 mod filter;
 mod random;
 mod resample;

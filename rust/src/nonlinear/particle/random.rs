@@ -14,6 +14,8 @@
 //! 1988: relative error about 1e−16): one uniform per normal, so the number of draws per
 //! particle is fixed and a particle's noise is addressed by its index.
 
+use crate::core::isa::run_wide;
+
 /// The golden-ratio increment of SplitMix64.
 const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
 
@@ -62,10 +64,50 @@ impl Stream {
         ((self.bits(i) >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)
     }
 
-    /// The i-th standard normal: the inverse normal CDF of the i-th uniform.
-    #[inline(always)]
+    /// The i-th standard normal: the inverse normal CDF of the i-th uniform ([`normals`]
+    /// makes many at a time).
+    ///
+    /// [`normals`]: Self::normals
+    #[cfg(test)]
     pub(crate) fn normal(self, i: u64) -> f64 {
         normal_quantile(self.uniform(i))
+    }
+}
+
+/// Scratch of [`Stream::normals`].
+#[derive(Debug, Clone, Default)]
+pub(crate) struct NormalScratch {
+    uniforms: Vec<f64>,
+    tails: Vec<u32>,
+}
+
+impl Stream {
+    /// `out[k]` = draw `first + k` as a standard normal, the same numbers as
+    /// [`normal`](Self::normal), many at a time: the uniforms and the central rational
+    /// function for all of them in vector registers, then the tails (15% of the draws) one by
+    /// one, so that no branch depends on a random number.
+    pub(crate) fn normals(self, first: u64, out: &mut [f64], scratch: &mut NormalScratch) {
+        let NormalScratch { uniforms, tails } = scratch;
+        uniforms.resize(out.len(), 0.0);
+        run_wide(|| {
+            for (k, u) in uniforms.iter_mut().enumerate() {
+                *u = self.uniform(first + k as u64);
+            }
+            for (z, &p) in out.iter_mut().zip(uniforms.iter()) {
+                let q = p - 0.5;
+                *z = q * ratio(&CENTRE_NUM, &CENTRE_DEN, 0.180625 - q * q);
+            }
+        });
+        // the tails' indices, without a branch per draw
+        tails.resize(out.len(), 0);
+        let mut count = 0;
+        for (k, &p) in uniforms.iter().enumerate() {
+            tails[count] = k as u32;
+            count += usize::from((p - 0.5).abs() > 0.425);
+        }
+        for &k in &tails[..count] {
+            out[k as usize] = normal_quantile(uniforms[k as usize]);
+        }
     }
 }
 
@@ -184,6 +226,16 @@ mod tests {
             assert!((low + high).abs() <= 1e-12 * high.abs(), "p = {p}");
         }
         assert_eq!(normal_quantile(0.5), 0.0);
+    }
+
+    #[test]
+    fn many_normals_at_once_are_the_same_numbers() {
+        let stream = Stream::new(5, 2, Purpose::ProcessNoise);
+        let mut out = vec![0.0; 10_001];
+        stream.normals(17, &mut out, &mut NormalScratch::default());
+        for (k, &z) in out.iter().enumerate() {
+            assert_eq!(z.to_bits(), stream.normal(17 + k as u64).to_bits(), "draw {k}");
+        }
     }
 
     #[test]

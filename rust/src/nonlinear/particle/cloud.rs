@@ -1,0 +1,469 @@
+//! The particles of a filter and the work on them, in blocks of [`BLOCK`] particles that run in
+//! parallel. A sum over the particles is summed within each block and then over the blocks in
+//! order, and every random draw is addressed by its particle, so the numbers do not depend on
+//! the thread count. f and h are called once per block — or once for all particles when they
+//! are Python callables, which hold the GIL (then everything runs on one thread).
+
+use super::filter::ParticleOptions;
+use super::random::{NormalScratch, Purpose, Stream};
+use super::resample::{resample, Scratch};
+use crate::core::alloc::check_f64_arrays;
+use crate::core::batch::par::*;
+use crate::error::{Error, Result};
+use crate::nonlinear::filter::{check_finite, Sensor};
+use crate::nonlinear::function::{wrap_angle, PointFunction};
+use crate::nonlinear::model::{NoiseEntry, NonlinearModel};
+use crate::nonlinear::sigma::{cholesky, semidefinite_cholesky};
+
+/// The particles in a block: fixed, so that the blocks' partial sums (and so the rounding) do
+/// not depend on the number of threads.
+const BLOCK: usize = 4096;
+
+/// The particles xⁱ with their normalized log-weights λⁱ, and the scratch of a step.
+pub(crate) struct Cloud {
+    options: ParticleOptions,
+    n: usize,
+    m: usize,
+    /// The size r of the process noise w.
+    r: usize,
+    /// f, h and g called per block (else once for all particles).
+    per_block: bool,
+    /// xⁱ (M × n).
+    x: Vec<f64>,
+    /// f(xⁱ), then x(t+1)ⁱ; the resampled particles; the prior's draws (M × n).
+    next: Vec<f64>,
+    /// λⁱ (M): log Σ exp λⁱ = 0.
+    log_w: Vec<f64>,
+    /// Wⁱ = exp λⁱ (M).
+    w: Vec<f64>,
+    /// h(xⁱ) (M × m).
+    images: Vec<f64>,
+    /// wⁱ (M × r).
+    noise: Vec<f64>,
+    /// g(xⁱ) (M × n r) with a noise gain; the points (xⁱ, wⁱ) (M × (n + r)) with the noise an
+    /// input of f.
+    noise_work: Vec<f64>,
+    /// The lower factor of P0 or Q(t).
+    factor: Vec<f64>,
+    likelihood: Likelihood,
+    /// The effective sample size after the last update.
+    ess: f64,
+    /// Per block: its normal draws' scratch, its outcome, its partial sums.
+    normals: Vec<NormalScratch>,
+    outcomes: Vec<Result<()>>,
+    partials: Vec<f64>,
+    ancestors: Vec<usize>,
+    resampling: Scratch,
+}
+
+impl Cloud {
+    pub(crate) fn new(model: &NonlinearModel, options: ParticleOptions) -> Result<Self> {
+        let (n, m, count) = (model.n_states(), model.n_obs(), options.particles);
+        let (entry, q) = model.process_noise(0);
+        let r = (q.len() as f64).sqrt().round() as usize;
+        if r == 0 {
+            return Err(Error::arg("Q", "is 0 × 0: the particle filter draws process noise (pass zeros for none)"));
+        }
+        let work = match entry {
+            NoiseEntry::Additive => 0,
+            NoiseEntry::Gain(_) => n * r,
+            NoiseEntry::Input => n + r,
+        };
+        // x, next, images, noise, noise_work, log_w, w, the indices and the normals' scratch
+        let arrays: [&[usize]; 6] =
+            [&[count, n], &[count, n], &[count, m], &[count, 2 * r], &[count, work], &[count, 4]];
+        check_f64_arrays("n_particles", &arrays)?;
+        let blocks = count.div_ceil(BLOCK);
+        Ok(Cloud {
+            options,
+            n,
+            m,
+            r,
+            per_block: model.parallel(),
+            x: vec![0.0; count * n],
+            next: vec![0.0; count * n],
+            log_w: vec![-(count as f64).ln(); count],
+            w: vec![1.0 / count as f64; count],
+            images: vec![0.0; count * m],
+            noise: vec![0.0; count * r],
+            noise_work: vec![0.0; count * work],
+            factor: vec![0.0; n.max(r) * n.max(r)],
+            likelihood: Likelihood::new(m),
+            ess: count as f64,
+            normals: vec![NormalScratch::default(); blocks],
+            outcomes: (0..blocks).map(|_| Ok(())).collect(),
+            partials: vec![0.0; blocks * (n * n + n + 2)],
+            ancestors: vec![0; count],
+            resampling: Scratch::default(),
+        })
+    }
+
+    /// The number of blocks of particles (the most threads that can share the work).
+    pub(crate) fn blocks(&self) -> usize {
+        self.normals.len()
+    }
+
+    /// M.
+    pub(crate) fn count(&self) -> usize {
+        self.w.len()
+    }
+
+    /// xⁱ (M × n).
+    pub(crate) fn particles(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// λⁱ (M).
+    pub(crate) fn log_weights(&self) -> &[f64] {
+        &self.log_w
+    }
+
+    /// xⁱ = x0 + L0 zⁱ, L0 L0' = P0 (P0 may be singular).
+    pub(crate) fn draw_prior(&mut self, x0: &[f64], p0: &[f64]) {
+        let n = self.n;
+        let l0 = &mut self.factor[..n * n];
+        semidefinite_cholesky(l0, p0, n);
+        let l0 = &*l0;
+        let stream = Stream::new(self.options.seed, 0, Purpose::Prior);
+        let blocks = self.x.par_chunks_mut(BLOCK * n).zip(self.next.par_chunks_mut(BLOCK * n));
+        blocks.zip(self.normals.par_iter_mut()).enumerate().for_each(|(b, ((x, z), scratch))| {
+            stream.normals((b * BLOCK * n) as u64, z, scratch);
+            for (xi, zi) in x.chunks_exact_mut(n).zip(z.chunks_exact(n)) {
+                for (a, v) in xi.iter_mut().enumerate() {
+                    *v = x0[a] + lower_times(l0, n, a, zi);
+                }
+            }
+        });
+    }
+
+    /// Weights the particles by p(y(t) | xⁱ); returns loglik_t (0 when nothing is observed).
+    pub(crate) fn update(&mut self, model: &NonlinearModel, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<f64> {
+        let sensor = model.sensor(t);
+        if !self.likelihood.prepare(sensor, y, t)? {
+            return Ok(0.0);
+        }
+        let (n, m) = (self.n, self.m);
+        let h = sensor.h;
+        if !self.per_block {
+            h.eval(&self.x, self.count(), t, u, &mut self.images)?;
+        }
+        let (per_block, likelihood) = (self.per_block, &self.likelihood);
+        let blocks = self.x.par_chunks(BLOCK * n).zip(self.images.par_chunks_mut(BLOCK * m));
+        let blocks = blocks.zip(self.log_w.par_chunks_mut(BLOCK)).zip(self.partials.par_chunks_mut(1));
+        blocks.zip(self.outcomes.par_iter_mut()).for_each(|((((x, images), log_w), top), outcome)| {
+            *outcome = (|| {
+                let k = log_w.len();
+                if per_block {
+                    h.eval(x, k, t, u, images)?;
+                }
+                check_finite("h", t, images, "returned a")?;
+                for (lw, image) in log_w.iter_mut().zip(images.chunks_exact(m)) {
+                    *lw += likelihood.log_density(image);
+                }
+                top[0] = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                Ok(())
+            })();
+        });
+        first_error(&mut self.outcomes)?;
+        let blocks = self.blocks();
+        let top = self.partials[..blocks].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if !top.is_finite() {
+            return Err(Error::arg_at(
+                "y",
+                t,
+                "has no particle that explains it (every likelihood underflowed to 0): use more particles or a wider R",
+            ));
+        }
+        // log Σ exp λⁱ with the largest subtracted, summed per block and then in block order
+        let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks(BLOCK));
+        blocks_w.zip(self.partials.par_chunks_mut(1)).for_each(|((w, log_w), sum)| {
+            let mut total = 0.0;
+            for (wi, &lw) in w.iter_mut().zip(log_w) {
+                *wi = (lw - top).exp();
+                total += *wi;
+            }
+            sum[0] = total;
+        });
+        let total: f64 = self.partials[..blocks].iter().sum();
+        let increment = top + total.ln();
+        let scale = 1.0 / total;
+        let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks_mut(BLOCK));
+        blocks_w.for_each(|(w, log_w)| {
+            for (wi, lw) in w.iter_mut().zip(log_w) {
+                *lw -= increment;
+                *wi *= scale;
+            }
+        });
+        Ok(increment)
+    }
+
+    /// The weighted mean and covariance (two passes; one triangle, mirrored) into `mean` and
+    /// `cov`; returns the effective sample size (Σ W)² / Σ W².
+    pub(crate) fn moments(&mut self, mean: &mut [f64], cov: &mut [f64]) -> f64 {
+        let (n, blocks) = (self.n, self.blocks());
+        let width = n * n + n + 2;
+        let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
+        sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
+            let (totals, weighted) = part[..n + 2].split_at_mut(2);
+            let (mut total, mut squares) = (0.0, 0.0);
+            weighted.fill(0.0);
+            for (xi, &wi) in x.chunks_exact(n).zip(w) {
+                total += wi;
+                squares += wi * wi;
+                for (s, &v) in weighted.iter_mut().zip(xi) {
+                    *s += wi * v;
+                }
+            }
+            totals.copy_from_slice(&[total, squares]);
+        });
+        let (mut total, mut squares) = (0.0, 0.0);
+        mean.fill(0.0);
+        for part in self.partials.chunks_exact(width).take(blocks) {
+            total += part[0];
+            squares += part[1];
+            mean.iter_mut().zip(&part[2..n + 2]).for_each(|(m, &s)| *m += s);
+        }
+        mean.iter_mut().for_each(|m| *m /= total);
+        let centre = &*mean;
+        let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
+        sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
+            let upper = &mut part[..n * n];
+            upper.fill(0.0);
+            for (xi, &wi) in x.chunks_exact(n).zip(w) {
+                for a in 0..n {
+                    let s = wi * (xi[a] - centre[a]);
+                    for b in a..n {
+                        upper[a * n + b] += s * (xi[b] - centre[b]);
+                    }
+                }
+            }
+        });
+        cov.fill(0.0);
+        for part in self.partials.chunks_exact(width).take(blocks) {
+            cov.iter_mut().zip(&part[..n * n]).for_each(|(c, &s)| *c += s);
+        }
+        for a in 0..n {
+            for b in a..n {
+                cov[a * n + b] /= total;
+                cov[b * n + a] = cov[a * n + b];
+            }
+        }
+        self.ess = total * total / squares;
+        self.ess
+    }
+
+    /// Resamples when the options say so (after [`moments`](Self::moments)); whether it did.
+    pub(crate) fn resample_if_due(&mut self, t: usize) -> bool {
+        let count = self.count();
+        let due = match self.options.ess_threshold {
+            None => true,
+            Some(tau) => self.ess < tau * count as f64,
+        };
+        if !due {
+            return false;
+        }
+        let stream = Stream::new(self.options.seed, t, Purpose::Resampling);
+        resample(self.options.resampling, &self.w, stream, &mut self.resampling, &mut self.ancestors);
+        let (n, x) = (self.n, &self.x);
+        let blocks = self.next.par_chunks_mut(BLOCK * n).zip(self.ancestors.par_chunks(BLOCK));
+        blocks.for_each(|(next, ancestors)| {
+            for (row, &a) in next.chunks_exact_mut(n).zip(ancestors) {
+                row.copy_from_slice(&x[a * n..][..n]);
+            }
+        });
+        std::mem::swap(&mut self.x, &mut self.next);
+        self.log_w.fill(-(count as f64).ln());
+        self.w.fill(1.0 / count as f64);
+        true
+    }
+
+    /// xⁱ ← f(xⁱ, t, u) + wⁱ (or g(xⁱ) wⁱ, or f(xⁱ, wⁱ)), wⁱ = L_Q zⁱ ~ N(0, Q(t)).
+    pub(crate) fn propagate(&mut self, model: &NonlinearModel, t: usize, u: Option<&[f64]>) -> Result<()> {
+        let (n, r, count, per_block) = (self.n, self.r, self.count(), self.per_block);
+        let (entry, q) = model.process_noise(t);
+        let l_q = &mut self.factor[..r * r];
+        semidefinite_cholesky(l_q, q, r);
+        let l_q = &*l_q;
+        let f = model.transition_function();
+        let stream = Stream::new(self.options.seed, t, Purpose::ProcessNoise);
+        let blocks = self.noise.par_chunks_mut(BLOCK * r).zip(self.normals.par_iter_mut());
+        blocks.enumerate().for_each(|(b, (noise, scratch))| {
+            stream.normals((b * BLOCK * r) as u64, noise, scratch);
+            for wi in noise.chunks_exact_mut(r) {
+                // wi = L zi in place: row a of L reads z up to a, so go from the last row up
+                for a in (0..r).rev() {
+                    wi[a] = lower_times(l_q, r, a, wi);
+                }
+            }
+        });
+        if matches!(entry, NoiseEntry::Input) {
+            // the points (x, w) of f
+            let rows = self.noise_work.par_chunks_mut(n + r).zip(self.x.par_chunks(n));
+            rows.zip(self.noise.par_chunks(r)).for_each(|((point, xi), wi)| {
+                point[..n].copy_from_slice(xi);
+                point[n..].copy_from_slice(wi);
+            });
+        }
+        if let NoiseEntry::Gain(g) = entry {
+            self.noise_gains(g, t, u)?;
+        }
+        let (f_in, f_width) = match entry {
+            NoiseEntry::Input => (&self.noise_work, n + r),
+            _ => (&self.x, n),
+        };
+        if !per_block {
+            f.eval(f_in, count, t, u, &mut self.next)?;
+        }
+        // f per block, and the noise added
+        let gains = &self.noise_work;
+        let blocks = self.next.par_chunks_mut(BLOCK * n).zip(f_in.par_chunks(BLOCK * f_width));
+        let blocks = blocks.zip(self.noise.par_chunks(BLOCK * r)).zip(self.outcomes.par_iter_mut());
+        blocks.enumerate().for_each(|(b, (((next, points), noise), outcome))| {
+            *outcome = (|| {
+                let k = next.len() / n;
+                if per_block {
+                    f.eval(points, k, t, u, next)?;
+                }
+                check_finite("f", t, next, "returned a")?;
+                match entry {
+                    NoiseEntry::Additive => next.iter_mut().zip(noise).for_each(|(v, &w)| *v += w),
+                    NoiseEntry::Gain(_) => {
+                        let gain = &gains[b * BLOCK * n * r..][..k * n * r];
+                        let rows = next.chunks_exact_mut(n).zip(gain.chunks_exact(n * r));
+                        for ((xi, gi), wi) in rows.zip(noise.chunks_exact(r)) {
+                            for (v, g_row) in xi.iter_mut().zip(gi.chunks_exact(r)) {
+                                *v += g_row.iter().zip(wi).map(|(a, b)| a * b).sum::<f64>();
+                            }
+                        }
+                    }
+                    NoiseEntry::Input => {}
+                }
+                Ok(())
+            })();
+        });
+        first_error(&mut self.outcomes)?;
+        std::mem::swap(&mut self.x, &mut self.next);
+        Ok(())
+    }
+
+    /// g(xⁱ) into `noise_work` (M × n r), checked finite.
+    fn noise_gains(&mut self, g: &dyn PointFunction, t: usize, u: Option<&[f64]>) -> Result<()> {
+        let (n, r) = (self.n, self.r);
+        if !self.per_block {
+            g.eval(&self.x, self.count(), t, u, &mut self.noise_work)?;
+            return check_finite("g", t, &self.noise_work, "returned a");
+        }
+        let blocks = self.x.par_chunks(BLOCK * n).zip(self.noise_work.par_chunks_mut(BLOCK * n * r));
+        blocks.zip(self.outcomes.par_iter_mut()).for_each(|((x, gains), outcome)| {
+            *outcome = g.eval(x, x.len() / n, t, u, gains).and_then(|()| check_finite("g", t, gains, "returned a"));
+        });
+        first_error(&mut self.outcomes)
+    }
+}
+
+/// Row `a` of the lower triangular `l` (size × size) times `z`: Σ_{c ≤ a} l[a, c] z[c].
+#[inline(always)]
+fn lower_times(l: &[f64], size: usize, a: usize, z: &[f64]) -> f64 {
+    l[a * size..][..=a].iter().zip(&z[..=a]).map(|(x, y)| x * y).sum()
+}
+
+/// The first block's error, in block order (so the same error whatever the threads); the
+/// outcomes reset.
+fn first_error(outcomes: &mut [Result<()>]) -> Result<()> {
+    let mut first = Ok(());
+    for outcome in outcomes.iter_mut() {
+        let result = std::mem::replace(outcome, Ok(()));
+        if first.is_ok() {
+            first = result;
+        }
+    }
+    first
+}
+
+/// The Gaussian likelihood N(y; h(x), R) of one step on its observed components.
+struct Likelihood {
+    observed: Vec<usize>,
+    /// y on the observed components.
+    y_obs: Vec<f64>,
+    /// Whether each observed component is an angle.
+    angle: Vec<bool>,
+    /// L⁻¹, L the lower factor of R on the observed components.
+    l_inv: Vec<f64>,
+    r_obs: Vec<f64>,
+    /// −½ (m_o log 2π + log det R_o).
+    constant: f64,
+}
+
+impl Likelihood {
+    fn new(m: usize) -> Self {
+        Likelihood {
+            observed: Vec::with_capacity(m),
+            y_obs: Vec::with_capacity(m),
+            angle: Vec::with_capacity(m),
+            l_inv: vec![0.0; m * m],
+            r_obs: vec![0.0; m * m],
+            constant: 0.0,
+        }
+    }
+
+    /// Sets up step t; false when nothing is observed.
+    fn prepare(&mut self, sensor: Sensor<'_>, y: &[f64], t: usize) -> Result<bool> {
+        let m = y.len();
+        self.observed.clear();
+        self.observed.extend((0..m).filter(|&i| !y[i].is_nan()));
+        let mo = self.observed.len();
+        if mo == 0 {
+            return Ok(false);
+        }
+        self.y_obs.clear();
+        self.y_obs.extend(self.observed.iter().map(|&i| y[i]));
+        self.angle.clear();
+        self.angle.extend(self.observed.iter().map(|i| sensor.angles.contains(i)));
+        for (a, &i) in self.observed.iter().enumerate() {
+            for (b, &j) in self.observed.iter().enumerate() {
+                self.r_obs[a * mo + b] = sensor.r[i * m + j];
+            }
+        }
+        // L (into l_inv), then its inverse column by column in r_obs, copied back
+        let l = &mut self.l_inv[..mo * mo];
+        cholesky(l, &self.r_obs[..mo * mo], mo).map_err(|_| {
+            Error::arg_at(
+                "R",
+                t,
+                "is not positive definite on the observed components (the Gaussian likelihood needs it)",
+            )
+        })?;
+        let log_det: f64 = 2.0 * (0..mo).map(|a| l[a * mo + a].ln()).sum::<f64>();
+        self.constant = -0.5 * (mo as f64 * (2.0 * std::f64::consts::PI).ln() + log_det);
+        let inverse = &mut self.r_obs[..mo * mo];
+        inverse.fill(0.0);
+        for c in 0..mo {
+            for a in c..mo {
+                let mut v = if a == c { 1.0 } else { 0.0 };
+                for b in c..a {
+                    v -= l[a * mo + b] * inverse[b * mo + c];
+                }
+                inverse[a * mo + c] = v / l[a * mo + a];
+            }
+        }
+        l.copy_from_slice(inverse);
+        Ok(true)
+    }
+
+    /// log N(y; image, R) on the observed components.
+    #[inline(always)]
+    fn log_density(&self, image: &[f64]) -> f64 {
+        let mo = self.observed.len();
+        let mut squares = 0.0;
+        for a in 0..mo {
+            let mut z = 0.0;
+            for b in 0..=a {
+                let i = self.observed[b];
+                let d = self.y_obs[b] - image[i];
+                z += self.l_inv[a * mo + b] * if self.angle[b] { wrap_angle(d) } else { d };
+            }
+            squares += z * z;
+        }
+        self.constant - 0.5 * squares
+    }
+}
