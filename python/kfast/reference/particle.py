@@ -43,8 +43,8 @@ class Stream:
             return _mix(self.key + (i + np.uint64(1)) * _GAMMA)
 
     def uniform(self, i):
-        """Uniforms in (0, 1): the top 53 bits, centred in their cell."""
-        return ((self.bits(i) >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53
+        """Uniforms in (0, 1): the top 52 bits, centred in their cell."""
+        return ((self.bits(i) >> np.uint64(12)).astype(float) + 0.5) * 2.0**-52
 
     def normal(self, i):
         return normal_quantile(self.uniform(i))

@@ -157,8 +157,11 @@ impl Cloud {
                     h.eval(x, k, t, u, images)?;
                 }
                 check_finite("h", t, images, "returned a")?;
-                for (lw, image) in log_w.iter_mut().zip(images.chunks_exact(m)) {
-                    *lw += likelihood.log_density(image);
+                let rows = log_w.iter_mut().zip(images.chunks_exact(m));
+                match (likelihood.observed.len(), likelihood.any_angle) {
+                    (1, false) => rows.for_each(|(lw, image)| *lw += likelihood.log_density_scalar(image)),
+                    (_, false) => rows.for_each(|(lw, image)| *lw += likelihood.log_density::<false>(image)),
+                    (_, true) => rows.for_each(|(lw, image)| *lw += likelihood.log_density::<true>(image)),
                 }
                 top[0] = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                 Ok(())
@@ -204,17 +207,14 @@ impl Cloud {
         let width = n * n + n + 2;
         let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
         sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
-            let (totals, weighted) = part[..n + 2].split_at_mut(2);
-            let (mut total, mut squares) = (0.0, 0.0);
-            weighted.fill(0.0);
-            for (xi, &wi) in x.chunks_exact(n).zip(w) {
-                total += wi;
-                squares += wi * wi;
-                for (s, &v) in weighted.iter_mut().zip(xi) {
+            lane_sums(w.len(), &mut part[..n + 2], |i, sums| {
+                let wi = w[i];
+                sums[0] += wi;
+                sums[1] += wi * wi;
+                for (s, &v) in sums[2..].iter_mut().zip(&x[i * n..][..n]) {
                     *s += wi * v;
                 }
-            }
-            totals.copy_from_slice(&[total, squares]);
+            });
         });
         let (mut total, mut squares) = (0.0, 0.0);
         mean.fill(0.0);
@@ -227,16 +227,15 @@ impl Cloud {
         let centre = &*mean;
         let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
         sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
-            let upper = &mut part[..n * n];
-            upper.fill(0.0);
-            for (xi, &wi) in x.chunks_exact(n).zip(w) {
+            lane_sums(w.len(), &mut part[..n * n], |i, upper| {
+                let xi = &x[i * n..][..n];
                 for a in 0..n {
-                    let s = wi * (xi[a] - centre[a]);
+                    let s = w[i] * (xi[a] - centre[a]);
                     for b in a..n {
                         upper[a * n + b] += s * (xi[b] - centre[b]);
                     }
                 }
-            }
+            });
         });
         cov.fill(0.0);
         for part in self.partials.chunks_exact(width).take(blocks) {
@@ -266,10 +265,10 @@ impl Cloud {
         resample(self.options.resampling, &self.w, stream, &mut self.resampling, &mut self.ancestors);
         let (n, x) = (self.n, &self.x);
         let blocks = self.next.par_chunks_mut(BLOCK * n).zip(self.ancestors.par_chunks(BLOCK));
-        blocks.for_each(|(next, ancestors)| {
-            for (row, &a) in next.chunks_exact_mut(n).zip(ancestors) {
-                row.copy_from_slice(&x[a * n..][..n]);
-            }
+        blocks.for_each(|(next, ancestors)| match n {
+            // a one-number row without a call of memmove
+            1 => next.iter_mut().zip(ancestors).for_each(|(v, &a)| *v = x[a]),
+            _ => next.chunks_exact_mut(n).zip(ancestors).for_each(|(row, &a)| row.copy_from_slice(&x[a * n..][..n])),
         });
         std::mem::swap(&mut self.x, &mut self.next);
         self.log_w.fill(-(count as f64).ln());
@@ -361,6 +360,34 @@ impl Cloud {
     }
 }
 
+/// `sums` = Σᵢ contribution(i) over the particles `0..count` of a block, each contribution
+/// added to `sums`-sized accumulators by `add(i, accumulators)`: with up to 64 sums, particle i
+/// goes to lane i mod 4 of four accumulators, added together at the end — four independent
+/// chains of additions instead of one, the order fixed by the block.
+#[inline(always)]
+fn lane_sums(count: usize, sums: &mut [f64], add: impl Fn(usize, &mut [f64])) {
+    const LANES: usize = 4;
+    let width = sums.len();
+    sums.fill(0.0);
+    if width > 64 {
+        (0..count).for_each(|i| add(i, sums));
+        return;
+    }
+    let mut lanes = [[0.0; 64]; LANES];
+    let groups = count / LANES;
+    for g in 0..groups {
+        for (l, lane) in lanes.iter_mut().enumerate() {
+            add(g * LANES + l, &mut lane[..width]);
+        }
+    }
+    for i in groups * LANES..count {
+        add(i, &mut lanes[0][..width]);
+    }
+    for (k, s) in sums.iter_mut().enumerate() {
+        *s = (lanes[0][k] + lanes[1][k]) + (lanes[2][k] + lanes[3][k]);
+    }
+}
+
 /// Row `a` of the lower triangular `l` (size × size) times `z`: Σ_{c ≤ a} l[a, c] z[c].
 #[inline(always)]
 fn lower_times(l: &[f64], size: usize, a: usize, z: &[f64]) -> f64 {
@@ -385,8 +412,9 @@ struct Likelihood {
     observed: Vec<usize>,
     /// y on the observed components.
     y_obs: Vec<f64>,
-    /// Whether each observed component is an angle.
+    /// Whether each observed component is an angle, and whether any is.
     angle: Vec<bool>,
+    any_angle: bool,
     /// L⁻¹, L the lower factor of R on the observed components.
     l_inv: Vec<f64>,
     r_obs: Vec<f64>,
@@ -400,6 +428,7 @@ impl Likelihood {
             observed: Vec::with_capacity(m),
             y_obs: Vec::with_capacity(m),
             angle: Vec::with_capacity(m),
+            any_angle: false,
             l_inv: vec![0.0; m * m],
             r_obs: vec![0.0; m * m],
             constant: 0.0,
@@ -419,6 +448,7 @@ impl Likelihood {
         self.y_obs.extend(self.observed.iter().map(|&i| y[i]));
         self.angle.clear();
         self.angle.extend(self.observed.iter().map(|i| sensor.angles.contains(i)));
+        self.any_angle = self.angle.contains(&true);
         for (a, &i) in self.observed.iter().enumerate() {
             for (b, &j) in self.observed.iter().enumerate() {
                 self.r_obs[a * mo + b] = sensor.r[i * m + j];
@@ -450,20 +480,27 @@ impl Likelihood {
         Ok(true)
     }
 
-    /// log N(y; image, R) on the observed components.
+    /// log N(y; image, R) on the observed components (`ANGLES`: some are angles, whose
+    /// residuals are wrapped; without, no wrapping is even computed).
     #[inline(always)]
-    fn log_density(&self, image: &[f64]) -> f64 {
+    fn log_density<const ANGLES: bool>(&self, image: &[f64]) -> f64 {
         let mo = self.observed.len();
         let mut squares = 0.0;
         for a in 0..mo {
             let mut z = 0.0;
             for b in 0..=a {
-                let i = self.observed[b];
-                let d = self.y_obs[b] - image[i];
-                z += self.l_inv[a * mo + b] * if self.angle[b] { wrap_angle(d) } else { d };
+                let d = self.y_obs[b] - image[self.observed[b]];
+                z += self.l_inv[a * mo + b] * if ANGLES && self.angle[b] { wrap_angle(d) } else { d };
             }
             squares += z * z;
         }
         self.constant - 0.5 * squares
+    }
+
+    /// [`log_density`](Self::log_density) of one observed component that is not an angle.
+    #[inline(always)]
+    fn log_density_scalar(&self, image: &[f64]) -> f64 {
+        let z = self.l_inv[0] * (self.y_obs[0] - image[self.observed[0]]);
+        self.constant - 0.5 * (z * z)
     }
 }

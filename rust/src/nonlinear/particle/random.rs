@@ -14,7 +14,7 @@
 //! 1988: relative error about 1e−16): one uniform per normal, so the number of draws per
 //! particle is fixed and a particle's noise is addressed by its index.
 
-use crate::core::isa::run_wide;
+use crate::core::isa::{kernel, Kernel};
 
 /// The golden-ratio increment of SplitMix64.
 const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
@@ -58,10 +58,14 @@ impl Stream {
         mix(self.key.wrapping_add(i.wrapping_add(1).wrapping_mul(GAMMA)))
     }
 
-    /// The i-th uniform in the open interval (0, 1): the top 53 bits, centred in their cell.
+    /// The i-th uniform in the open interval (0, 1): the top 52 bits, centred in their cell.
+    /// (Converted through the exponent bits of 2⁵², exact for integers below 2⁵², so that four
+    /// convert at once in AVX2, which has no 64-bit integer conversion.)
     #[inline(always)]
     pub(crate) fn uniform(self, i: u64) -> f64 {
-        ((self.bits(i) >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)
+        const TWO_52: f64 = (1u64 << 52) as f64;
+        let top = f64::from_bits((self.bits(i) >> 12) | TWO_52.to_bits()) - TWO_52;
+        (top + 0.5) * (1.0 / TWO_52)
     }
 
     /// The i-th standard normal: the inverse normal CDF of the i-th uniform ([`normals`]
@@ -89,15 +93,7 @@ impl Stream {
     pub(crate) fn normals(self, first: u64, out: &mut [f64], scratch: &mut NormalScratch) {
         let NormalScratch { uniforms, tails } = scratch;
         uniforms.resize(out.len(), 0.0);
-        run_wide(|| {
-            for (k, u) in uniforms.iter_mut().enumerate() {
-                *u = self.uniform(first + k as u64);
-            }
-            for (z, &p) in out.iter_mut().zip(uniforms.iter()) {
-                let q = p - 0.5;
-                *z = q * ratio(&CENTRE_NUM, &CENTRE_DEN, 0.180625 - q * q);
-            }
-        });
+        self.central_normals_wide(first, uniforms, out);
         // the tails' indices, without a branch per draw
         tails.resize(out.len(), 0);
         let mut count = 0;
@@ -107,6 +103,38 @@ impl Stream {
         }
         for &k in &tails[..count] {
             out[k as usize] = normal_quantile(uniforms[k as usize]);
+        }
+    }
+}
+
+impl Stream {
+    /// [`central_normals`](Self::central_normals) in AVX2 where the CPU has it (the same bits:
+    /// no FMA).
+    fn central_normals_wide(self, first: u64, uniforms: &mut [f64], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2")]
+            unsafe fn avx2(stream: Stream, first: u64, uniforms: &mut [f64], out: &mut [f64]) {
+                stream.central_normals(first, uniforms, out)
+            }
+            if kernel() != Kernel::Baseline {
+                // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
+                return unsafe { avx2(self, first, uniforms, out) };
+            }
+        }
+        self.central_normals(first, uniforms, out)
+    }
+
+    /// Draws `first..` as uniforms, and AS 241's central branch of each into `out` (a wrong
+    /// value for the tails, which the caller replaces).
+    #[inline(always)]
+    fn central_normals(self, first: u64, uniforms: &mut [f64], out: &mut [f64]) {
+        for (k, u) in uniforms.iter_mut().enumerate() {
+            *u = self.uniform(first + k as u64);
+        }
+        for (z, &p) in out.iter_mut().zip(uniforms.iter()) {
+            let q = p - 0.5;
+            *z = q * ratio(&CENTRE_NUM, &CENTRE_DEN, 0.180625 - q * q);
         }
     }
 }

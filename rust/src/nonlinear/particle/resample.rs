@@ -9,7 +9,11 @@
 //! scheme's: the sure copies in increasing order, then the drawn ones).
 
 use super::random::Stream;
+use crate::core::batch::par::*;
 use crate::error::{Error, Result};
+
+/// The indices of a parallel block (fixed, so that the sums do not depend on the threads).
+const BLOCK: usize = 4096;
 
 /// How the ancestors are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,6 +52,8 @@ impl Resampling {
 pub(crate) struct Scratch {
     uniforms: Vec<f64>,
     remainders: Vec<f64>,
+    cumulative: Vec<f64>,
+    block_totals: Vec<f64>,
 }
 
 /// The ancestors `out` (M indices) of the M particles with weights `w` (not
@@ -55,25 +61,50 @@ pub(crate) struct Scratch {
 pub(crate) fn resample(scheme: Resampling, w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize]) {
     let m = w.len();
     let mf = m as f64;
-    let u = &mut scratch.uniforms;
+    let Scratch { uniforms: u, cumulative, block_totals, .. } = scratch;
     match scheme {
-        Resampling::Multinomial => {
-            ordered_uniforms(stream, m, u);
-            inverse_cdf(w, u, out);
-        }
-        Resampling::Systematic => {
+        Resampling::Multinomial => ordered_uniforms(stream, m, u),
+        Resampling::Systematic | Resampling::Stratified => {
+            u.resize(m, 0.0);
             let u0 = stream.uniform(0);
-            u.clear();
-            u.extend((0..m).map(|k| (k as f64 + u0) / mf));
-            inverse_cdf(w, u, out);
+            u.par_chunks_mut(BLOCK).enumerate().for_each(|(b, u)| {
+                for (i, v) in u.iter_mut().enumerate() {
+                    let k = b * BLOCK + i;
+                    let offset = if scheme == Resampling::Systematic { u0 } else { stream.uniform(k as u64) };
+                    *v = (k as f64 + offset) / mf;
+                }
+            });
         }
-        Resampling::Stratified => {
-            u.clear();
-            u.extend((0..m).map(|k| (k as f64 + stream.uniform(k as u64)) / mf));
-            inverse_cdf(w, u, out);
-        }
-        Resampling::Residual => residual(w, stream, scratch, out),
+        Resampling::Residual => return residual(w, stream, scratch, out),
     }
+    cumulative_sums(w, cumulative, block_totals);
+    inverse_cdf(cumulative, u, out);
+}
+
+/// The cumulative sums of `w` into `c`: each block's running sums in parallel, then the
+/// blocks' totals in order, added to the later blocks (nondecreasing, as each step rounds
+/// monotonically).
+fn cumulative_sums(w: &[f64], c: &mut Vec<f64>, block_totals: &mut Vec<f64>) {
+    c.resize(w.len(), 0.0);
+    block_totals.resize(w.len().div_ceil(BLOCK), 0.0);
+    let blocks = c.par_chunks_mut(BLOCK).zip(w.par_chunks(BLOCK));
+    blocks.zip(block_totals.par_iter_mut()).for_each(|((c, w), total)| {
+        let mut sum = 0.0;
+        for (ci, &wi) in c.iter_mut().zip(w) {
+            sum += wi;
+            *ci = sum;
+        }
+        *total = sum;
+    });
+    let mut offset = 0.0;
+    for total in block_totals.iter_mut() {
+        let start = offset;
+        offset += *total;
+        *total = start;
+    }
+    c.par_chunks_mut(BLOCK).zip(block_totals.par_iter_mut()).skip(1).for_each(|(c, &mut start)| {
+        c.iter_mut().for_each(|ci| *ci += start);
+    });
 }
 
 /// M ordered uniforms into `u`: the partial sums of M + 1 standard exponentials (draws
@@ -92,19 +123,21 @@ fn ordered_uniforms(stream: Stream, m: usize, u: &mut Vec<f64>) {
     }
 }
 
-/// `out[k]` = the first j with w₀ + … + wⱼ ≥ u[k] · Σw, for increasing `u` in (0, 1).
-fn inverse_cdf(w: &[f64], u: &[f64], out: &mut [usize]) {
-    let total: f64 = w.iter().sum();
-    let last = w.len() - 1;
-    let (mut j, mut cumulative) = (0, w[0]);
-    for (a, &uk) in out.iter_mut().zip(u) {
-        let target = uk * total;
-        while cumulative < target && j < last {
-            j += 1;
-            cumulative += w[j];
+/// `out[k]` = the first j with `c[j]` ≥ u[k] · c[M − 1], for the cumulative weights `c` and
+/// increasing `u` in (0, 1): blocks of k in parallel, each from a binary search for its
+/// first j.
+fn inverse_cdf(c: &[f64], u: &[f64], out: &mut [usize]) {
+    let (last, total) = (c.len() - 1, c[c.len() - 1]);
+    out.par_chunks_mut(BLOCK).zip(u.par_chunks(BLOCK)).for_each(|(out, u)| {
+        let mut j = c.partition_point(|&v| v < u[0] * total).min(last);
+        for (a, &uk) in out.iter_mut().zip(u) {
+            let target = uk * total;
+            while c[j] < target && j < last {
+                j += 1;
+            }
+            *a = j;
         }
-        *a = j;
-    }
+    });
 }
 
 fn residual(w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize]) {
@@ -123,7 +156,7 @@ fn residual(w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize])
         return;
     }
     // the rest drawn multinomially from the remainders
-    let Scratch { uniforms, remainders } = scratch;
+    let Scratch { uniforms, remainders, cumulative, block_totals } = scratch;
     remainders.clear();
     remainders.extend(w.iter().map(|&wi| wi * scale - (wi * scale).floor()));
     if remainders.iter().all(|&r| r <= 0.0) {
@@ -132,7 +165,8 @@ fn residual(w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize])
         remainders.extend_from_slice(w);
     }
     ordered_uniforms(stream, rest, uniforms);
-    inverse_cdf(remainders, uniforms, &mut out[filled..]);
+    cumulative_sums(remainders, cumulative, block_totals);
+    inverse_cdf(cumulative, uniforms, &mut out[filled..]);
 }
 
 #[cfg(test)]
