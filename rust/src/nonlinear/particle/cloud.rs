@@ -4,11 +4,13 @@
 //! the thread count. f and h are called once per block — or once for all particles when they
 //! are Python callables, which hold the GIL (then everything runs on one thread).
 
+use super::exp::exp_nonpositive;
 use super::filter::ParticleOptions;
 use super::random::{NormalScratch, Purpose, Stream};
 use super::resample::{resample, Scratch};
 use crate::core::alloc::check_f64_arrays;
 use crate::core::batch::par::*;
+use crate::core::isa::{kernel, Kernel};
 use crate::error::{Error, Result};
 use crate::nonlinear::filter::{check_finite, Sensor};
 use crate::nonlinear::function::{wrap_angle, PointFunction};
@@ -32,9 +34,11 @@ pub(crate) struct Cloud {
     x: Vec<f64>,
     /// f(xⁱ), then x(t+1)ⁱ; the resampled particles; the prior's draws (M × n).
     next: Vec<f64>,
-    /// λⁱ (M): log Σ exp λⁱ = 0.
+    /// λⁱ + `log_w_offset` (M): the log-weights before their normalization, which is left to
+    /// the next pass that reads them (log Σ exp λⁱ = 0).
     log_w: Vec<f64>,
-    /// Wⁱ = exp λⁱ (M).
+    log_w_offset: f64,
+    /// Wⁱ up to a common factor (M).
     w: Vec<f64>,
     /// h(xⁱ) (M × m).
     images: Vec<f64>,
@@ -83,6 +87,7 @@ impl Cloud {
             x: vec![0.0; count * n],
             next: vec![0.0; count * n],
             log_w: vec![-(count as f64).ln(); count],
+            log_w_offset: 0.0,
             w: vec![1.0 / count as f64; count],
             images: vec![0.0; count * m],
             noise: vec![0.0; count * r],
@@ -113,9 +118,9 @@ impl Cloud {
         &self.x
     }
 
-    /// λⁱ (M).
-    pub(crate) fn log_weights(&self) -> &[f64] {
-        &self.log_w
+    /// λⁱ (M) into `out`.
+    pub(crate) fn copy_log_weights(&self, out: &mut [f64]) {
+        out.iter_mut().zip(&self.log_w).for_each(|(o, &lw)| *o = lw - self.log_w_offset);
     }
 
     /// xⁱ = x0 + L0 zⁱ, L0 L0' = P0 (P0 may be singular).
@@ -147,7 +152,7 @@ impl Cloud {
         if !self.per_block {
             h.eval(&self.x, self.count(), t, u, &mut self.images)?;
         }
-        let (per_block, likelihood) = (self.per_block, &self.likelihood);
+        let (per_block, likelihood, offset) = (self.per_block, &self.likelihood, self.log_w_offset);
         let blocks = self.x.par_chunks(BLOCK * n).zip(self.images.par_chunks_mut(BLOCK * m));
         let blocks = blocks.zip(self.log_w.par_chunks_mut(BLOCK)).zip(self.partials.par_chunks_mut(1));
         blocks.zip(self.outcomes.par_iter_mut()).for_each(|((((x, images), log_w), top), outcome)| {
@@ -158,10 +163,17 @@ impl Cloud {
                 }
                 check_finite("h", t, images, "returned a")?;
                 let rows = log_w.iter_mut().zip(images.chunks_exact(m));
+                // λⁱ + ℓⁱ, λⁱ normalized here
                 match (likelihood.observed.len(), likelihood.any_angle) {
-                    (1, false) => rows.for_each(|(lw, image)| *lw += likelihood.log_density_scalar(image)),
-                    (_, false) => rows.for_each(|(lw, image)| *lw += likelihood.log_density::<false>(image)),
-                    (_, true) => rows.for_each(|(lw, image)| *lw += likelihood.log_density::<true>(image)),
+                    (1, false) => {
+                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density_scalar(image))
+                    }
+                    (_, false) => {
+                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density::<false>(image))
+                    }
+                    (_, true) => {
+                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density::<true>(image))
+                    }
                 }
                 top[0] = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                 Ok(())
@@ -180,23 +192,12 @@ impl Cloud {
         // log Σ exp λⁱ with the largest subtracted, summed per block and then in block order
         let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks(BLOCK));
         blocks_w.zip(self.partials.par_chunks_mut(1)).for_each(|((w, log_w), sum)| {
-            let mut total = 0.0;
-            for (wi, &lw) in w.iter_mut().zip(log_w) {
-                *wi = (lw - top).exp();
-                total += *wi;
-            }
-            sum[0] = total;
+            sum[0] = exp_and_sum(w, log_w, top);
         });
         let total: f64 = self.partials[..blocks].iter().sum();
         let increment = top + total.ln();
-        let scale = 1.0 / total;
-        let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks_mut(BLOCK));
-        blocks_w.for_each(|(w, log_w)| {
-            for (wi, lw) in w.iter_mut().zip(log_w) {
-                *lw -= increment;
-                *wi *= scale;
-            }
-        });
+        // λⁱ = log_w − increment from now on; W stays unnormalized (every use divides by ΣW)
+        self.log_w_offset = increment;
         Ok(increment)
     }
 
@@ -272,6 +273,7 @@ impl Cloud {
         });
         std::mem::swap(&mut self.x, &mut self.next);
         self.log_w.fill(-(count as f64).ln());
+        self.log_w_offset = 0.0;
         self.w.fill(1.0 / count as f64);
         true
     }
@@ -358,6 +360,30 @@ impl Cloud {
         });
         first_error(&mut self.outcomes)
     }
+}
+
+/// `w[i] = exp(log_w[i] − top)` (all ≤ 0) and their sum, in AVX2 where the CPU has it (the
+/// same bits: no FMA).
+fn exp_and_sum(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
+    #[inline(always)]
+    fn run(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
+        w.iter_mut().zip(log_w).for_each(|(wi, &lw)| *wi = exp_nonpositive(lw - top));
+        let mut total = 0.0;
+        lane_sums(w.len(), std::slice::from_mut(&mut total), |i, sum| sum[0] += w[i]);
+        total
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2")]
+        unsafe fn avx2(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
+            run(w, log_w, top)
+        }
+        if kernel() != Kernel::Baseline {
+            // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
+            return unsafe { avx2(w, log_w, top) };
+        }
+    }
+    run(w, log_w, top)
 }
 
 /// `sums` = Σᵢ contribution(i) over the particles `0..count` of a block, each contribution

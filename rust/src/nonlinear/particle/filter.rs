@@ -176,7 +176,7 @@ fn step(
         p[slot * count * n..][..count * n].copy_from_slice(cloud.particles());
     }
     if let (Some(slot), Some(w)) = (kept, out.log_weights.as_deref_mut()) {
-        w[slot * count..][..count].copy_from_slice(cloud.log_weights());
+        cloud.copy_log_weights(&mut w[slot * count..][..count]);
     }
     if t + 1 < steps {
         out.resampled[t] = cloud.resample_if_due(t);

@@ -6,6 +6,7 @@
 //! by its seed.
 
 mod cloud;
+mod exp;
 mod filter;
 mod random;
 mod resample;
