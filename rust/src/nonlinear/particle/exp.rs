@@ -9,9 +9,10 @@
 //! lacks) and 2ᵏ is built in the exponent bits, in two halves so that results below the
 //! smallest normal number come out as subnormals.
 
-/// log 2 = LN2_HI + LN2_LO, LN2_HI with its low 32 bits zero (fdlibm's split).
-const LN2_HI: f64 = 6.931_471_803_691_238_164_9e-1;
-const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+/// log 2 = LN2_HI + LN2_LO, LN2_HI with its low 32 bits zero (fdlibm's split, by its bits:
+/// 6.93147180369123816490e-01 and 1.90821492927058770002e-10).
+const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
+const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
 /// 1.5 × 2⁵²: adding it rounds to an integer held in the low mantissa bits.
 const ROUNDER: f64 = 6_755_399_441_055_744.0;
 
