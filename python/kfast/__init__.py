@@ -34,7 +34,8 @@ from kfast.linear.model import (
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
-from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
+from kfast.nonlinear.median import mean_filter, median_filter
+from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
@@ -57,6 +58,9 @@ __all__ = [
     "NonlinearModel",
     "ExtendedKalmanFilter",
     "UnscentedKalmanFilter",
+    "ParticleFilter",
+    "median_filter",
+    "mean_filter",
     "FilterResult",
     "SmootherResult",
     "ParticleResult",

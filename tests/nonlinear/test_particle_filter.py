@@ -261,3 +261,69 @@ def test_a_compiled_model_equals_the_python_callable():
     want = python.particle_filter(y, [0.0], [[5.0]], 9000, resample="residual", seed=1)
     np.testing.assert_allclose(got.x_filt, want.x_filt, rtol=1e-9, atol=1e-9)
     assert got.loglik == pytest.approx(want.loglik, rel=1e-10)
+
+
+@pytest.mark.parametrize("threshold", [None, 0.5])
+def test_the_streaming_filter_gives_the_bits_of_the_batch_filter(threshold):
+    _, y = simulate_ungm(25, seed=7)
+    y[[3, 9]] = np.nan
+    nm = kfast.models.ungm()
+    batch = nm.particle_filter(y, [0.0], [[5.0]], 5000, resample="stratified", ess_threshold=threshold, seed=8, keep="all")
+    pf = kfast.ParticleFilter(nm, [0.0], [[5.0]], 5000, resample="stratified", ess_threshold=threshold, seed=8)
+    assert pf.t == 0 and pf.particles.shape == (5000, 1)
+    for t in range(25):
+        loglik_t = pf.update(y[t])
+        assert loglik_t == batch.loglik_t[t]
+        np.testing.assert_array_equal(pf.x, batch.x_filt[t])
+        np.testing.assert_array_equal(pf.P, batch.P_filt[t])
+        np.testing.assert_array_equal(pf.particles, batch.particles[t])
+        np.testing.assert_array_equal(pf.log_weights, batch.log_weights[t])
+        assert pf.ess == batch.ess[t]
+        if t + 1 < 25:
+            assert pf.predict() == batch.resampled[t]
+            assert pf.t == t + 1
+    assert pf.loglik == pytest.approx(batch.loglik, rel=1e-14)
+    assert repr(pf) == "ParticleFilter(t=24, n=1, particles=5000)"
+
+
+def test_a_failed_streaming_update_leaves_the_particles_unchanged():
+    calls = {"n": 0}
+
+    def h(X, t, u):
+        calls["n"] += 1
+        return X**2 / 20 * (np.nan if calls["n"] == 2 else 1.0)
+
+    nm = kfast.NonlinearModel(ungm_f, h, [[10.0]], [[1.0]], n=1)
+    pf = kfast.ParticleFilter(nm, [0.0], [[5.0]], 300, seed=2)
+    pf.update([0.3])
+    pf.predict()
+    before = (pf.particles, pf.log_weights, pf.x, pf.ess)
+    with pytest.raises(ValueError, match=r"h.*step 1|step 1.*h"):
+        pf.update([0.5])
+    after = (pf.particles, pf.log_weights, pf.x, pf.ess)
+    for a, b in zip(before, after):
+        np.testing.assert_array_equal(a, b)
+    tight = kfast.NonlinearModel(ungm_f, ungm_h, [[1.0]], [[1e-300]], n=1)
+    pf = kfast.ParticleFilter(tight, [0.0], [[1.0]], 100, seed=1)
+    weights = pf.log_weights
+    with pytest.raises(ValueError, match="y"):
+        pf.update([1e6])
+    np.testing.assert_array_equal(pf.log_weights, weights)
+    pf.update([0.01])  # and it goes on
+    assert pf.t == 0
+
+
+def test_streaming_bad_input():
+    nm = kfast.models.ungm()
+    for kw, arg in (({"n_particles": 0}, "n_particles"), ({"resample": "x"}, "resample"), ({"seed": -2}, "seed"),
+                    ({"ess_threshold": 2.0}, "ess_threshold"), ({"threads": 0}, "threads")):
+        args = {"n_particles": 10, **kw}
+        with pytest.raises(ValueError, match=arg):
+            kfast.ParticleFilter(nm, [0.0], [[1.0]], **args)
+    pf = kfast.ParticleFilter(nm, [0.0], [[1.0]], 10)
+    with pytest.raises(ValueError, match="y"):
+        pf.update([1.0, 2.0])
+    with pytest.raises(ValueError, match="y"):
+        pf.update([np.inf])
+    with pytest.raises(ValueError, match="model"):
+        kfast.ParticleFilter("ungm", [0.0], [[1.0]], 10)

@@ -1,4 +1,5 @@
-"""Streaming nonlinear filters: the EKF and the UKF one measurement at a time."""
+"""Streaming nonlinear filters: the EKF, the UKF and the particle filter one measurement at a
+time."""
 
 from __future__ import annotations
 
@@ -10,11 +11,11 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64
-from kfast._typing import Form, Iteration, UkfForm
-from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _spec
+from kfast._typing import Form, Iteration, Resample, UkfForm
+from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _fraction, _seed, _spec
 from kfast.sigma import SigmaPoints, merwe
 
-__all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter"]
+__all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter", "ParticleFilter"]
 
 
 class _Streaming:
@@ -143,6 +144,94 @@ class UnscentedKalmanFilter(_Streaming):
         x, P = model._prior(x0, P0)
         form = cast(UkfForm, choice("form", form, ("standard", "sqrt")))
         self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec(), form=form)
+
+
+class ParticleFilter:
+    """The particle filter of a :class:`kfast.NonlinearModel` one measurement at a time: M =
+    ``n_particles`` particles drawn from the prior N(x0, P0) at t = 0, then ``update(y)`` and
+    ``predict()`` per step. The same steps with the same options and seed give the numbers of
+    :meth:`NonlinearModel.particle_filter`, bit for bit; the options are those.
+
+    >>> pf = kfast.ParticleFilter(kfast.models.ungm(), [0.0], [[5.0]], n_particles=1000, seed=1)
+    >>> loglik_0 = pf.update([0.4]); resampled = pf.predict()
+    >>> pf.t, pf.x.shape, pf.particles.shape
+    (1, (1,), (1000, 1))
+    """
+
+    def __init__(
+        self,
+        model: NonlinearModel,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        n_particles: int,
+        resample: Resample = "multinomial",
+        ess_threshold: Optional[float] = None,
+        seed: int = 0,
+        threads: Optional[int] = None,
+    ) -> None:
+        self._model = _model(model)
+        resample = cast(Resample, choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")))
+        threshold = None if ess_threshold is None else _fraction("ess_threshold", ess_threshold)
+        x, P = model._prior(x0, P0)
+        self._core = _kfast.ParticleFilter(
+            model._core, x, P, index("n_particles", n_particles), resample=resample, ess_threshold=threshold,
+            seed=_seed(seed), threads=None if threads is None else index("threads", threads),
+        )
+
+    def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> float:
+        """The measurement update with y(t) (NaN marks a missing component): the weights
+        times p(y(t) | x_i). Returns the estimate of log p(y(t) | y(0..t-1)). After an error
+        the particles and weights are unchanged."""
+        return float(self._core.update(_vector("y", y), None if u is None else _vector("u", u)))
+
+    def predict(self, u: Optional[ArrayLike] = None) -> bool:
+        """Resampling (every step, or when the ESS is below the threshold) and the time update
+        to t + 1. Returns whether the particles were resampled."""
+        return bool(self._core.predict(None if u is None else _vector("u", u)))
+
+    def step(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> float:
+        """``update(y, u)`` then ``predict(u)``; returns the update's log-likelihood term."""
+        loglik_t = self.update(y, u)
+        self.predict(u)
+        return loglik_t
+
+    @property
+    def x(self) -> np.ndarray:
+        """The weighted mean of the particles: x(t|t) after an update, x(t|t-1) otherwise."""
+        return cast(np.ndarray, self._core.x)
+
+    @property
+    def P(self) -> np.ndarray:
+        """Their weighted covariance, shape (n, n)."""
+        return cast(np.ndarray, self._core.P)
+
+    @property
+    def particles(self) -> np.ndarray:
+        """The particles, shape (M, n) (a copy)."""
+        return cast(np.ndarray, self._core.particles)
+
+    @property
+    def log_weights(self) -> np.ndarray:
+        """Their normalized log-weights, shape (M,)."""
+        return cast(np.ndarray, self._core.log_weights)
+
+    @property
+    def ess(self) -> float:
+        """The effective sample size 1 / sum W_i^2 of the particles now."""
+        return float(self._core.ess)
+
+    @property
+    def t(self) -> int:
+        """The current step (0 at the start; ``predict`` advances it)."""
+        return int(self._core.t)
+
+    @property
+    def loglik(self) -> float:
+        """The sum of the updates' log-likelihood estimates so far."""
+        return float(self._core.loglik)
+
+    def __repr__(self) -> str:
+        return f"ParticleFilter(t={self.t}, n={self._model.n_states}, particles={len(self.log_weights)})"
 
 
 def _model(model: Any) -> NonlinearModel:

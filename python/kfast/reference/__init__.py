@@ -59,3 +59,7 @@ __all__ += ["nonlinear"]
 from kfast.reference.particle import particle_filter  # noqa: E402
 
 __all__ += ["particle_filter"]
+
+from kfast.reference.median import mean_filter, median_filter  # noqa: E402
+
+__all__ += ["median_filter", "mean_filter"]

@@ -153,11 +153,26 @@ pub(crate) mod par {
 
     /// Runs `f` on a pool of `threads` threads.
     pub fn on_threads(threads: usize, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| Error::arg("threads", e.to_string()))?;
-        pool.install(f)
+        Pool::new(threads)?.install(f)
+    }
+
+    /// A pool of threads kept for many calls (a streaming filter's).
+    pub struct Pool(rayon::ThreadPool);
+
+    impl Pool {
+        /// A pool of `threads` threads.
+        pub fn new(threads: usize) -> Result<Self> {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| Error::arg("threads", e.to_string()))?;
+            Ok(Pool(pool))
+        }
+
+        /// Runs `f` on the pool.
+        pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+            self.0.install(f)
+        }
     }
 }
 
@@ -168,6 +183,21 @@ pub(crate) mod par {
     /// Runs `f` on this thread (`threads` is ignored without the feature `rayon`).
     pub fn on_threads(_threads: usize, f: impl FnOnce() -> Result<()>) -> Result<()> {
         f()
+    }
+
+    /// A stand-in for rayon's pool: runs everything on the calling thread.
+    pub struct Pool;
+
+    impl Pool {
+        /// The stand-in (`threads` is ignored).
+        pub fn new(_threads: usize) -> Result<Self> {
+            Ok(Pool)
+        }
+
+        /// Runs `f`.
+        pub fn install<R>(&self, f: impl FnOnce() -> R) -> R {
+            f()
+        }
     }
 
     /// rayon's slice methods, sequential.

@@ -14,11 +14,13 @@
 //! [`smooth_nonlinear_into`] adds the extended or unscented RTS backward pass;
 //! [`NonlinearKalmanFilter`] runs either filter one step at a time; [`particle_filter`] (with
 //! [`ParticleOptions`] and a [`Resampling`] scheme) is the sequential Monte Carlo filter of
-//! the same model.
+//! the same model; [`median_filter`] and [`mean_filter`] are the running order-statistic and
+//! moving-average filters of Söderström section 9.7.
 
 mod batch;
 mod filter;
 mod function;
+mod median;
 mod model;
 pub mod models;
 mod particle;
@@ -31,9 +33,10 @@ mod trig;
 pub use batch::{ekf_batch, ukf_batch};
 pub use filter::{ekf_into, ukf_into, EkfOptions, Iteration, Sensor, UkfForm, UkfOptions};
 pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
+pub use median::{mean_filter, median_filter, StartUp};
 pub use model::NonlinearModel;
 pub use particle::{
-    particle_filter, particle_filter_into, ParticleOptions, ParticleOutputs, ParticleResult, Resampling,
+    particle_filter, particle_filter_into, ParticleFilter, ParticleOptions, ParticleOutputs, ParticleResult, Resampling,
 };
 pub use sigma::{CustomPoints, SigmaPoints};
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};

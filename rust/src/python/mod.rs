@@ -356,6 +356,9 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyLinearGaussian>()?;
     m.add_class::<nonlinear::PyNonlinearModel>()?;
     m.add_class::<nonlinear::PyNonlinearKalmanFilter>()?;
+    m.add_class::<nonlinear::PyParticleFilter>()?;
+    m.add_function(wrap_pyfunction!(nonlinear::median_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(nonlinear::mean_filter, m)?)?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;
     m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;

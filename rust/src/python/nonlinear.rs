@@ -728,3 +728,129 @@ impl PyNonlinearKalmanFilter {
         self.inner.loglik()
     }
 }
+
+/// The streaming particle filter; `kfast.ParticleFilter` wraps it.
+#[pyclass(module = "kfast._kfast", name = "ParticleFilter")]
+pub(super) struct PyParticleFilter {
+    inner: nonlinear::ParticleFilter,
+}
+
+#[pymethods]
+impl PyParticleFilter {
+    #[new]
+    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        model: &PyNonlinearModel,
+        x0: Array<'_>,
+        P0: Array<'_>,
+        n_particles: usize,
+        resample: &str,
+        ess_threshold: Option<f64>,
+        seed: u64,
+        threads: Option<usize>,
+    ) -> PyResult<Self> {
+        let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
+        let options = nonlinear::ParticleOptions {
+            particles: n_particles,
+            resampling: nonlinear::Resampling::from_name(resample)?,
+            ess_threshold,
+            seed,
+            threads,
+        };
+        let shared = Arc::clone(&model.shared);
+        let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
+        Ok(PyParticleFilter { inner })
+    }
+
+    /// The update with y(t); returns its estimate of log p(y(t) | y(0..t-1)).
+    #[pyo3(signature = (y, u=None))]
+    fn update(&mut self, py: Python<'_>, y: Array<'_>, u: Option<Array<'_>>) -> PyResult<f64> {
+        let y = super::data("y", &y, 1)?;
+        let u = u.as_ref().map(|u| super::data("u", u, 1)).transpose()?;
+        let inner = &mut self.inner;
+        Ok(py.detach(|| inner.update(y, u))?)
+    }
+
+    /// Resampling if due and the time update; whether it resampled.
+    #[pyo3(signature = (u=None))]
+    fn predict(&mut self, py: Python<'_>, u: Option<Array<'_>>) -> PyResult<bool> {
+        let u = u.as_ref().map(|u| super::data("u", u, 1)).transpose()?;
+        let inner = &mut self.inner;
+        Ok(py.detach(|| inner.predict(u))?)
+    }
+
+    #[getter]
+    fn x<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        super::to_array(py, self.inner.x(), &[self.inner.x().len()])
+    }
+
+    #[getter(P)]
+    fn p<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = self.inner.x().len();
+        super::to_array(py, self.inner.p(), &[n, n])
+    }
+
+    #[getter]
+    fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = self.inner.x().len();
+        let particles = self.inner.particles();
+        super::to_array(py, particles, &[particles.len() / n, n])
+    }
+
+    #[getter]
+    fn log_weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let mut out = vec![0.0; self.inner.particles().len() / self.inner.x().len()];
+        self.inner.log_weights(&mut out);
+        super::to_array(py, &out, &[out.len()])
+    }
+
+    #[getter]
+    fn ess(&self) -> f64 {
+        self.inner.ess()
+    }
+
+    #[getter]
+    fn t(&self) -> usize {
+        self.inner.t()
+    }
+
+    #[getter]
+    fn loglik(&self) -> f64 {
+        self.inner.loglik()
+    }
+}
+
+/// The causal running median of window `n` of each column of `u` (T, k); `mode` "valid" or
+/// "grow".
+#[pyfunction]
+pub(super) fn median_filter<'py>(py: Python<'py>, u: Array<'py>, n: usize, mode: &str) -> PyResult<Bound<'py, PyAny>> {
+    order_filter(py, u, n, mode, nonlinear::median_filter)
+}
+
+/// The causal running mean of window `n` of each column of `u` (T, k).
+#[pyfunction]
+pub(super) fn mean_filter<'py>(py: Python<'py>, u: Array<'py>, n: usize, mode: &str) -> PyResult<Bound<'py, PyAny>> {
+    order_filter(py, u, n, mode, nonlinear::mean_filter)
+}
+
+type WindowFilter = fn(&[f64], usize, usize, usize, nonlinear::StartUp) -> Result<Vec<f64>>;
+
+fn order_filter<'py>(
+    py: Python<'py>,
+    u: Array<'py>,
+    n: usize,
+    mode: &str,
+    filter: WindowFilter,
+) -> PyResult<Bound<'py, PyAny>> {
+    let start = nonlinear::StartUp::from_name(mode)?;
+    let shape = u.shape().to_vec();
+    if shape.len() != 2 {
+        return Err(KfastError::new_err(format!("u: expected shape (T, k), got {shape:?}")));
+    }
+    let values = u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?;
+    let out = py.detach(|| filter(values, shape[0], shape[1], n, start))?;
+    Ok(out.into_pyarray(py).reshape(shape)?.into_any())
+}

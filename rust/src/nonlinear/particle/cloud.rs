@@ -154,41 +154,51 @@ impl Cloud {
         }
         let (per_block, likelihood, offset) = (self.per_block, &self.likelihood, self.log_w_offset);
         let blocks = self.x.par_chunks(BLOCK * n).zip(self.images.par_chunks_mut(BLOCK * m));
-        let blocks = blocks.zip(self.log_w.par_chunks_mut(BLOCK)).zip(self.partials.par_chunks_mut(1));
-        blocks.zip(self.outcomes.par_iter_mut()).for_each(|((((x, images), log_w), top), outcome)| {
+        // λⁱ + ℓⁱ (λⁱ normalized here) into `w`, which becomes the log-weights only when the
+        // whole update succeeded: after an error the state is what it was
+        let blocks = blocks.zip(self.log_w.par_chunks(BLOCK)).zip(self.w.par_chunks_mut(BLOCK));
+        let blocks = blocks.zip(self.partials.par_chunks_mut(1)).zip(self.outcomes.par_iter_mut());
+        blocks.for_each(|(((((x, images), log_w), sums), top), outcome)| {
             *outcome = (|| {
                 let k = log_w.len();
                 if per_block {
                     h.eval(x, k, t, u, images)?;
                 }
                 check_finite("h", t, images, "returned a")?;
-                let rows = log_w.iter_mut().zip(images.chunks_exact(m));
-                // λⁱ + ℓⁱ, λⁱ normalized here
+                let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
                 match (likelihood.observed.len(), likelihood.any_angle) {
                     (1, false) => {
-                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density_scalar(image))
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density_scalar(image))
                     }
                     (_, false) => {
-                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density::<false>(image))
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<false>(image))
                     }
                     (_, true) => {
-                        rows.for_each(|(lw, image)| *lw = (*lw - offset) + likelihood.log_density::<true>(image))
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<true>(image))
                     }
                 }
-                top[0] = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                 Ok(())
             })();
         });
-        first_error(&mut self.outcomes)?;
+        let failed = first_error(&mut self.outcomes);
         let blocks = self.blocks();
         let top = self.partials[..blocks].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        if !top.is_finite() {
-            return Err(Error::arg_at(
+        let failed = failed.and_then(|()| match top.is_finite() {
+            true => Ok(()),
+            false => Err(Error::arg_at(
                 "y",
                 t,
                 "has no particle that explains it (every likelihood underflowed to 0): use more particles or a wider R",
-            ));
+            )),
+        });
+        if let Err(e) = failed {
+            // the weights again, from the untouched log-weights
+            let top = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            self.w.iter_mut().zip(&self.log_w).for_each(|(w, &lw)| *w = (lw - top).exp());
+            return Err(e);
         }
+        std::mem::swap(&mut self.log_w, &mut self.w);
         // log Σ exp λⁱ with the largest subtracted, summed per block and then in block order
         let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks(BLOCK));
         blocks_w.zip(self.partials.par_chunks_mut(1)).for_each(|((w, log_w), sum)| {

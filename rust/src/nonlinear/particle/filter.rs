@@ -50,7 +50,7 @@ impl ParticleOptions {
         ParticleOptions { particles, resampling: Resampling::Multinomial, ess_threshold: None, seed: 0, threads: None }
     }
 
-    fn check(&self) -> Result<()> {
+    pub(crate) fn check(&self) -> Result<()> {
         if self.particles == 0 {
             return Err(Error::arg("n_particles", "must be at least 1"));
         }

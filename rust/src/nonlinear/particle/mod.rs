@@ -10,6 +10,8 @@ mod exp;
 mod filter;
 mod random;
 mod resample;
+mod streaming;
 
 pub use filter::{particle_filter, particle_filter_into, ParticleOptions, ParticleOutputs, ParticleResult};
 pub use resample::Resampling;
+pub use streaming::ParticleFilter;
