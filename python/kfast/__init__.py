@@ -34,7 +34,7 @@ from kfast.linear.model import (
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
-from kfast.nonlinear.median import mean_filter, median_filter
+from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.linear.batch import BatchResult, filter_batch
@@ -61,6 +61,7 @@ __all__ = [
     "ParticleFilter",
     "median_filter",
     "mean_filter",
+    "order_statistic_pdf",
     "FilterResult",
     "SmootherResult",
     "ParticleResult",

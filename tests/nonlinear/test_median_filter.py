@@ -74,3 +74,44 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="u"):
         kfast.median_filter([1.0, np.inf], 3)
     assert kfast.median_filter(np.ones((0, 2)), 3).shape == (0, 2)
+
+
+@pytest.mark.parametrize("which", ["min", "max", "median"])
+@pytest.mark.parametrize("n", [0, 1, 3])
+def test_order_statistic_densities_integrate_to_one_and_match_monte_carlo(which, n):
+    from scipy import stats
+    from scipy.integrate import quad
+
+    dist = stats.gumbel_r(loc=0.5, scale=2.0)  # skewed, so min, max and median differ
+
+    def density(z):
+        return kfast.order_statistic_pdf(z, dist.pdf, dist.cdf, n, which=which)
+
+    assert quad(lambda z: density(np.array([z]))[0], -30, 60, limit=200)[0] == pytest.approx(1.0, abs=1e-8)
+    # a seeded Monte-Carlo histogram of the statistic of 2n + 1 draws
+    draws = dist.rvs(size=(200_000, 2 * n + 1), random_state=np.random.default_rng(5))
+    sample = {"min": draws.min(axis=1), "max": draws.max(axis=1), "median": np.median(draws, axis=1)}[which]
+    edges = np.linspace(*np.quantile(sample, [0.01, 0.99]), 21)
+    counts, _ = np.histogram(sample, bins=edges)
+    expected = np.array([quad(lambda z: density(np.array([z]))[0], a, b)[0] for a, b in zip(edges[:-1], edges[1:])]) * len(sample)
+    # Pearson's statistic on 20 bins: far below its 0.999 quantile (about 45) for a right density
+    assert np.sum((counts - expected) ** 2 / expected) < 45
+
+
+def test_order_statistic_special_cases_and_bad_input():
+    from scipy import stats
+
+    z = np.linspace(-3, 3, 7)
+    np.testing.assert_allclose(kfast.order_statistic_pdf(z, stats.norm.pdf, stats.norm.cdf, 0), stats.norm.pdf(z), rtol=1e-14)
+    # the maximum of 3 uniforms has density 3 z^2 on (0, 1)
+    u = np.linspace(0.05, 0.95, 5)
+    np.testing.assert_allclose(kfast.order_statistic_pdf(u, stats.uniform.pdf, stats.uniform.cdf, 1, "max"), 3 * u**2, rtol=1e-14)
+    assert kfast.order_statistic_pdf(np.array([-40.0]), stats.norm.pdf, stats.norm.cdf, 3)[0] == 0.0
+    with pytest.raises(ValueError, match="which"):
+        kfast.order_statistic_pdf(z, stats.norm.pdf, stats.norm.cdf, 1, which="mode")
+    with pytest.raises(ValueError, match="n"):
+        kfast.order_statistic_pdf(z, stats.norm.pdf, stats.norm.cdf, -1)
+    with pytest.raises(ValueError, match="cdf"):
+        kfast.order_statistic_pdf(z, stats.norm.pdf, lambda z: 2 * stats.norm.cdf(z), 1)
+    with pytest.raises(ValueError, match="pdf"):
+        kfast.order_statistic_pdf(z, lambda z: np.ones(3), stats.norm.cdf, 1)

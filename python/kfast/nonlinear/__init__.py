@@ -2,10 +2,10 @@
 particle filter."""
 
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
-from kfast.nonlinear.median import mean_filter, median_filter
+from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
 from kfast.nonlinear.model import BuiltinFunction, NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 
 __all__ = ["NonlinearModel", "BuiltinFunction", "ExtendedKalmanFilter", "UnscentedKalmanFilter", "ekf_batch", "ukf_batch", "ParticleResult", "ParticleFilter",
-           "median_filter", "mean_filter"]
+           "median_filter", "mean_filter", "order_statistic_pdf"]
