@@ -414,15 +414,11 @@ class NonlinearModel:
             Bad arguments; f, h or g returning a non-finite value (naming it and the step); no
             particle explaining y(t) (every likelihood 0: more particles or a wider R).
         """
-        resample = cast(Resample, choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")))
+        options = _particle_options(n_particles, resample, ess_threshold, seed, threads)
         if keep is not None:
             keep = cast(Keep, choice("keep", keep, ("last", "all")))
-        threshold = None if ess_threshold is None else _fraction("ess_threshold", ess_threshold)
         args = self._data(y, x0, P0, u)
-        out = self._core.particle_filter(
-            *args[:3], index("n_particles", n_particles), resample=resample, ess_threshold=threshold,
-            seed=_seed(seed), keep=keep, u=args[3], threads=None if threads is None else index("threads", threads),
-        )
+        out = self._core.particle_filter(*args[:3], keep=keep, u=args[3], **options)
         return ParticleResult(**out)
 
     def _points(self, points: Optional[SigmaPoints]) -> SigmaPoints:
@@ -457,6 +453,17 @@ class NonlinearModel:
 C_SIGNATURE = "void (const double *X, intptr_t k, intptr_t n, int64_t t, const double *u, double *out)"
 """The C signature of a compiled f or h: the k points X (k x n, row-major), the step t, the input
 row u (NULL without inputs, else the model's input width) and the k x m results in out."""
+
+
+def _particle_options(n_particles: object, resample: object, ess_threshold: object, seed: object, threads: object) -> dict[str, Any]:
+    """The particle filters' options, checked (as keyword arguments of the compiled calls)."""
+    return {
+        "n_particles": index("n_particles", n_particles),
+        "resample": choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")),
+        "ess_threshold": None if ess_threshold is None else _fraction("ess_threshold", ess_threshold),
+        "seed": _seed(seed),
+        "threads": None if threads is None else index("threads", threads),
+    }
 
 
 def _fraction(name: str, value: object) -> float:

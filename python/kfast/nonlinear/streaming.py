@@ -12,7 +12,7 @@ from kfast import _kfast
 from kfast._args import choice, index
 from kfast._arrays import as_float64
 from kfast._typing import Form, Iteration, Resample, UkfForm
-from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _fraction, _seed, _spec
+from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _particle_options, _spec
 from kfast.sigma import SigmaPoints, merwe
 
 __all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter", "ParticleFilter"]
@@ -170,13 +170,9 @@ class ParticleFilter:
         threads: Optional[int] = None,
     ) -> None:
         self._model = _model(model)
-        resample = cast(Resample, choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")))
-        threshold = None if ess_threshold is None else _fraction("ess_threshold", ess_threshold)
+        options = _particle_options(n_particles, resample, ess_threshold, seed, threads)
         x, P = model._prior(x0, P0)
-        self._core = _kfast.ParticleFilter(
-            model._core, x, P, index("n_particles", n_particles), resample=resample, ess_threshold=threshold,
-            seed=_seed(seed), threads=None if threads is None else index("threads", threads),
-        )
+        self._core = _kfast.ParticleFilter(model._core, x, P, **options)
 
     def update(self, y: ArrayLike, u: Optional[ArrayLike] = None) -> float:
         """The measurement update with y(t) (NaN marks a missing component): the weights

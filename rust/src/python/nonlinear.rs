@@ -476,13 +476,7 @@ impl PyNonlinearModel {
         u: Option<Array<'py>>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let options = nonlinear::ParticleOptions {
-            particles: n_particles,
-            resampling: nonlinear::Resampling::from_name(resample)?,
-            ess_threshold,
-            seed,
-            threads,
-        };
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads)?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, steps) = (self.inner.n_states(), y.steps());
@@ -753,13 +747,7 @@ impl PyParticleFilter {
         threads: Option<usize>,
     ) -> PyResult<Self> {
         let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
-        let options = nonlinear::ParticleOptions {
-            particles: n_particles,
-            resampling: nonlinear::Resampling::from_name(resample)?,
-            ess_threshold,
-            seed,
-            threads,
-        };
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads)?;
         let shared = Arc::clone(&model.shared);
         let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
         Ok(PyParticleFilter { inner })
@@ -821,6 +809,18 @@ impl PyParticleFilter {
     fn loglik(&self) -> f64 {
         self.inner.loglik()
     }
+}
+
+/// The particle filter's options from Python's arguments.
+fn particle_options(
+    particles: usize,
+    resample: &str,
+    ess_threshold: Option<f64>,
+    seed: u64,
+    threads: Option<usize>,
+) -> Result<nonlinear::ParticleOptions> {
+    let resampling = nonlinear::Resampling::from_name(resample)?;
+    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads })
 }
 
 /// The causal running median of window `n` of each column of `u` (T, k); `mode` "valid" or

@@ -73,11 +73,12 @@ impl Cloud {
             NoiseEntry::Gain(_) => n * r,
             NoiseEntry::Input => n + r,
         };
-        // x, next, images, noise, noise_work, log_w, w, the indices and the normals' scratch
-        let arrays: [&[usize]; 6] =
-            [&[count, n], &[count, n], &[count, m], &[count, 2 * r], &[count, work], &[count, 4]];
-        check_f64_arrays("n_particles", &arrays)?;
+        // x, next, images, noise, noise_work, log_w, w, the indices and the normals' scratch, and
+        // the blocks' partial moments
         let blocks = count.div_ceil(BLOCK);
+        let per_particle: [&[usize]; 6] =
+            [&[count, n], &[count, n], &[count, m], &[count, 2 * r], &[count, work], &[count, 4]];
+        check_f64_arrays("n_particles", &[&per_particle[..], &[&[blocks, n * n + n + 2]]].concat())?;
         Ok(Cloud {
             options,
             n,

@@ -21,6 +21,7 @@
 
 use super::cloud::Cloud;
 use super::resample::Resampling;
+use crate::core::alloc::check_f64_arrays;
 use crate::core::batch::{par, thread_count};
 use crate::core::Series;
 use crate::error::{Error, Result};
@@ -113,6 +114,7 @@ pub fn particle_filter(
     options: ParticleOptions,
 ) -> Result<ParticleResult> {
     let (steps, n) = (y.steps(), model.n_states());
+    check_f64_arrays("y", &[&[steps, n, n], &[steps, n + 3]])?;
     let mut x_filt = vec![0.0; steps * n];
     let mut p_filt = vec![0.0; steps * n * n];
     let (mut ess, mut resampled, mut loglik_t) = (vec![0.0; steps], vec![false; steps], vec![0.0; steps]);
