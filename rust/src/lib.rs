@@ -45,6 +45,10 @@
 //!   Gaussian filters; a noise gain g through [`NonlinearModel::with_noise_gain`], noise as an
 //!   input of f through [`NonlinearModel::with_noise_input`]; [`ekf_batch`] / [`ukf_batch`] for
 //!   many tracks.
+//! - [`nonlinear::particle_filter`] ([`nonlinear::ParticleOptions`], a
+//!   [`nonlinear::Resampling`] scheme) and the streaming [`nonlinear::ParticleFilter`]: the
+//!   particle filter of the same model, on all cores, fixed by its seed;
+//!   [`nonlinear::median_filter`] / [`nonlinear::mean_filter`]: the running median and mean.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```

@@ -2,8 +2,9 @@
 //! filter (Söderström (9.89)–(9.100)) and sequential importance resampling with the
 //! resampling schemes of [`Resampling`], triggered every step or by the effective sample size.
 //!
-//! Random numbers come from kfast's own counter-based generator (`random`), so a run is fixed
-//! by its seed.
+//! [`ParticleFilter`] runs the same steps one measurement at a time. Random numbers come from
+//! kfast's own counter-based generator (`random`), so a run is fixed by its seed, whatever the
+//! number of threads.
 
 mod cloud;
 mod exp;
