@@ -225,7 +225,9 @@ pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: imp
 /// [`Kernel::Baseline`] forced): for lane-wise arithmetic on short arrays (the built-in
 /// models' sines and bearings, four points at a time), which the baseline compiles to two
 /// SSE2 halves and bitwise selects. Separate multiplies and adds only, so the same bits as
-/// the baseline: deterministic mode does not need to avoid it.
+/// the baseline: deterministic mode does not need to avoid it. Mark the closure
+/// `#[inline(always)]`: LLVM may otherwise keep it a function of its own, compiled for the
+/// baseline (seen with the particle filter's loops: SSE2 inside the AVX2 wrapper).
 #[inline(always)]
 pub(crate) fn run_wide<R>(job: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]

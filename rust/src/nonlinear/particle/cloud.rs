@@ -10,7 +10,7 @@ use super::random::{NormalScratch, Purpose, Stream};
 use super::resample::{resample, Scratch};
 use crate::core::alloc::check_f64_arrays;
 use crate::core::batch::par::*;
-use crate::core::isa::{kernel, Kernel};
+use crate::core::isa::run_wide;
 use crate::error::{Error, Result};
 use crate::nonlinear::filter::{check_finite, Sensor};
 use crate::nonlinear::function::{wrap_angle, PointFunction};
@@ -203,7 +203,11 @@ impl Cloud {
         // log Σ exp λⁱ with the largest subtracted, summed per block and then in block order
         let blocks_w = self.w.par_chunks_mut(BLOCK).zip(self.log_w.par_chunks(BLOCK));
         blocks_w.zip(self.partials.par_chunks_mut(1)).for_each(|((w, log_w), sum)| {
-            sum[0] = exp_and_sum(w, log_w, top);
+            // in AVX2 where the CPU has it (the same bits: no FMA)
+            sum[0] = run_wide(
+                #[inline(always)]
+                || exp_and_sum(w, log_w, top),
+            );
         });
         let total: f64 = self.partials[..blocks].iter().sum();
         let increment = top + total.ln();
@@ -373,28 +377,13 @@ impl Cloud {
     }
 }
 
-/// `w[i] = exp(log_w[i] − top)` (all ≤ 0) and their sum, in AVX2 where the CPU has it (the
-/// same bits: no FMA).
+/// `w[i] = exp(log_w[i] − top)` (all ≤ 0) and their sum.
+#[inline(always)]
 fn exp_and_sum(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
-    #[inline(always)]
-    fn run(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
-        w.iter_mut().zip(log_w).for_each(|(wi, &lw)| *wi = exp_nonpositive(lw - top));
-        let mut total = 0.0;
-        lane_sums(w.len(), std::slice::from_mut(&mut total), |i, sum| sum[0] += w[i]);
-        total
-    }
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
-            run(w, log_w, top)
-        }
-        if kernel() != Kernel::Baseline {
-            // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
-            return unsafe { avx2(w, log_w, top) };
-        }
-    }
-    run(w, log_w, top)
+    w.iter_mut().zip(log_w).for_each(|(wi, &lw)| *wi = exp_nonpositive(lw - top));
+    let mut total = 0.0;
+    lane_sums(w.len(), std::slice::from_mut(&mut total), |i, sum| sum[0] += w[i]);
+    total
 }
 
 /// `sums` = Σᵢ contribution(i) over the particles `0..count` of a block, each contribution

@@ -14,7 +14,7 @@
 //! 1988: relative error about 1e−16): one uniform per normal, so the number of draws per
 //! particle is fixed and a particle's noise is addressed by its index.
 
-use crate::core::isa::{kernel, Kernel};
+use crate::core::isa::run_wide;
 
 /// The golden-ratio increment of SplitMix64.
 const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
@@ -93,7 +93,11 @@ impl Stream {
     pub(crate) fn normals(self, first: u64, out: &mut [f64], scratch: &mut NormalScratch) {
         let NormalScratch { uniforms, tails } = scratch;
         uniforms.resize(out.len(), 0.0);
-        self.central_normals_wide(first, uniforms, out);
+        // in AVX2 where the CPU has it (the same bits: no FMA)
+        run_wide(
+            #[inline(always)]
+            || self.central_normals(first, uniforms, out),
+        );
         // the tails' indices, without a branch per draw
         tails.resize(out.len(), 0);
         let mut count = 0;
@@ -104,25 +108,6 @@ impl Stream {
         for &k in &tails[..count] {
             out[k as usize] = normal_quantile(uniforms[k as usize]);
         }
-    }
-}
-
-impl Stream {
-    /// [`central_normals`](Self::central_normals) in AVX2 where the CPU has it (the same bits:
-    /// no FMA).
-    fn central_normals_wide(self, first: u64, uniforms: &mut [f64], out: &mut [f64]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            #[target_feature(enable = "avx2")]
-            unsafe fn avx2(stream: Stream, first: u64, uniforms: &mut [f64], out: &mut [f64]) {
-                stream.central_normals(first, uniforms, out)
-            }
-            if kernel() != Kernel::Baseline {
-                // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
-                return unsafe { avx2(self, first, uniforms, out) };
-            }
-        }
-        self.central_normals(first, uniforms, out)
     }
 
     /// Draws `first..` as uniforms, and AS 241's central branch of each into `out` (a wrong
