@@ -18,11 +18,36 @@ from kfast.sigma import SigmaPoints, merwe
 __all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter", "ParticleFilter"]
 
 
-class _Streaming:
-    """What the two streaming filters share: update / predict / step and the state."""
+class _State:
+    """The state every streaming nonlinear filter shows."""
 
     _core: Any
     _model: NonlinearModel
+
+    @property
+    def x(self) -> np.ndarray:
+        """x(t|t) after an update, x(t|t-1) otherwise, shape (n,) (a particle filter's: the
+        weighted mean of its particles)."""
+        return cast(np.ndarray, self._core.x)
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, shape (n, n)."""
+        return cast(np.ndarray, self._core.P)
+
+    @property
+    def t(self) -> int:
+        """The current step (0 at the start; ``predict`` advances it)."""
+        return int(self._core.t)
+
+    @property
+    def loglik(self) -> float:
+        """The sum of the updates' log-likelihood terms so far."""
+        return float(self._core.loglik)
+
+
+class _Streaming(_State):
+    """What the EKF and the UKF share: update / predict / step."""
 
     def update(
         self,
@@ -66,26 +91,6 @@ class _Streaming:
         """``update(y, u)`` then ``predict(u)``."""
         self.update(y, u)
         self.predict(u)
-
-    @property
-    def x(self) -> np.ndarray:
-        """x(t|t) after an update, x(t|t-1) otherwise, shape (n,)."""
-        return cast(np.ndarray, self._core.x)
-
-    @property
-    def P(self) -> np.ndarray:
-        """Its covariance, shape (n, n)."""
-        return cast(np.ndarray, self._core.P)
-
-    @property
-    def t(self) -> int:
-        """The current step (0 at the start; ``predict`` advances it)."""
-        return int(self._core.t)
-
-    @property
-    def loglik(self) -> float:
-        """The sum of the updates' log-likelihood terms so far."""
-        return float(self._core.loglik)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(t={self.t}, n={self._model.n_states})"
@@ -146,7 +151,7 @@ class UnscentedKalmanFilter(_Streaming):
         self._core = _kfast.NonlinearKalmanFilter(model._core, x, P, "ukf", points._spec(), form=form)
 
 
-class ParticleFilter:
+class ParticleFilter(_State):
     """The particle filter of a :class:`kfast.NonlinearModel` one measurement at a time: M =
     ``n_particles`` particles drawn from the prior N(x0, P0) at t = 0, then ``update(y)`` and
     ``predict()`` per step. The same steps with the same options and seed give the numbers of
@@ -171,6 +176,7 @@ class ParticleFilter:
     ) -> None:
         self._model = _model(model)
         options = _particle_options(n_particles, resample, ess_threshold, seed, threads)
+        self._n_particles: int = options["n_particles"]
         x, P = model._prior(x0, P0)
         self._core = _kfast.ParticleFilter(model._core, x, P, **options)
 
@@ -192,16 +198,6 @@ class ParticleFilter:
         return loglik_t
 
     @property
-    def x(self) -> np.ndarray:
-        """The weighted mean of the particles: x(t|t) after an update, x(t|t-1) otherwise."""
-        return cast(np.ndarray, self._core.x)
-
-    @property
-    def P(self) -> np.ndarray:
-        """Their weighted covariance, shape (n, n)."""
-        return cast(np.ndarray, self._core.P)
-
-    @property
     def particles(self) -> np.ndarray:
         """The particles, shape (M, n) (a copy)."""
         return cast(np.ndarray, self._core.particles)
@@ -216,18 +212,8 @@ class ParticleFilter:
         """The effective sample size 1 / sum W_i^2 of the particles now."""
         return float(self._core.ess)
 
-    @property
-    def t(self) -> int:
-        """The current step (0 at the start; ``predict`` advances it)."""
-        return int(self._core.t)
-
-    @property
-    def loglik(self) -> float:
-        """The sum of the updates' log-likelihood estimates so far."""
-        return float(self._core.loglik)
-
     def __repr__(self) -> str:
-        return f"ParticleFilter(t={self.t}, n={self._model.n_states}, particles={len(self.log_weights)})"
+        return f"ParticleFilter(t={self.t}, n={self._model.n_states}, particles={self._n_particles})"
 
 
 def _model(model: Any) -> NonlinearModel:
