@@ -37,6 +37,7 @@ from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
+from kfast.multiple import IMMFilter, IMMResult, gaussian_sum, imm_filter, model_bank
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -62,6 +63,11 @@ __all__ = [
     "median_filter",
     "mean_filter",
     "order_statistic_pdf",
+    "IMMFilter",
+    "IMMResult",
+    "imm_filter",
+    "model_bank",
+    "gaussian_sum",
     "FilterResult",
     "SmootherResult",
     "ParticleResult",

@@ -68,6 +68,26 @@ impl Error {
     }
 }
 
+impl Error {
+    /// The same error with `context` (e.g. "mode 2") before its problem, for the filters a
+    /// multiple-model filter runs.
+    pub(crate) fn within(self, context: &str) -> Self {
+        let tell = |problem: String| format!("{context}: {problem}");
+        match self {
+            Error::InvalidArgument { arg, step, problem } => {
+                Error::InvalidArgument { arg, step, problem: tell(problem) }
+            }
+            Error::InnovationCovariance { step, problem } => {
+                Error::InnovationCovariance { step, problem: tell(problem) }
+            }
+            Error::NotPositiveDefinite { what, step, problem } => {
+                Error::NotPositiveDefinite { what, step, problem: tell(problem) }
+            }
+            Error::NoStabilizingSolution { problem } => Error::NoStabilizingSolution { problem: tell(problem) },
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -49,6 +49,9 @@
 //!   [`nonlinear::Resampling`] scheme) and the streaming [`nonlinear::ParticleFilter`]: the
 //!   particle filter of the same model, on all cores, fixed by its seed;
 //!   [`nonlinear::median_filter`] / [`nonlinear::mean_filter`]: the running median and mean.
+//! - [`multiple::MultipleModelFilter`]: the interacting multiple-model filter, the fixed
+//!   model bank and the Gaussian-sum filter over linear or nonlinear modes
+//!   ([`multiple::ModeFilter`]), modes of different sizes related by [`multiple::StateMap`]s.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -65,6 +68,7 @@
 mod core;
 pub mod error;
 pub mod linear;
+pub mod multiple;
 pub mod nonlinear;
 #[cfg(feature = "python")]
 mod python;

@@ -410,6 +410,13 @@ _ENTRY_LIST = [
     Entry("ar", "ric", "kfast.models.ar({kw})",
           (Arg("coeffs", "[0.5, -0.2]", shape=(2,), alt_shapes=((),), free_length=True), Arg("noise_var", "1.0", kind="float"), Arg("r", "0.5", kind="float"))),
 ]
+_MODE_PROBS = Arg("mode_probs", "np.array([0.5, 0.5])", shape=(2,), optional=True)
+_ENTRY_LIST += [
+    # the multiple-model filters over two copies of the CV model
+    Entry("imm_filter", "cv", "kfast.imm_filter([M, M], {kw})",
+          (Arg("transition", "np.array([[0.9, 0.1], [0.2, 0.8]])", shape=(2, 2)), *_CV, _MODE_PROBS)),
+    Entry("model_bank", "cv", "kfast.model_bank([M, M], {kw})", (*_CV, _MODE_PROBS)),
+]
 _ENTRY_LIST += [
     # the compiled model's simulation kernel (reachable as model._core.propagate)
     Entry("propagate", "io", "M._core.propagate({kw})",

@@ -63,3 +63,7 @@ __all__ += ["particle_filter"]
 from kfast.reference.median import mean_filter, median_filter  # noqa: E402
 
 __all__ += ["median_filter", "mean_filter"]
+
+from kfast.reference.multiple import gaussian_sum_filter, imm_filter, model_bank  # noqa: E402
+
+__all__ += ["imm_filter", "model_bank", "gaussian_sum_filter"]

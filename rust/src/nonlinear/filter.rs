@@ -204,6 +204,8 @@ pub(crate) trait GaussianFilter: Send + Sync {
         u: Option<&[f64]>,
         cross: Option<&mut [f64]>,
     ) -> Result<()>;
+    /// A copy (a multiple-model filter takes its modes' filters as they are).
+    fn boxed_clone(&self) -> Box<dyn GaussianFilter>;
 }
 
 /// The measurement model of one step: h, R and the angular outputs of h.
@@ -218,6 +220,7 @@ pub struct Sensor<'a> {
 }
 
 /// The EKF between steps, with its scratch.
+#[derive(Clone)]
 pub(crate) struct Ekf {
     ws: Step,
     options: EkfOptions,
@@ -254,6 +257,9 @@ impl Ekf {
 impl GaussianFilter for Ekf {
     fn name(&self) -> &'static str {
         "extended Kalman filter"
+    }
+    fn boxed_clone(&self) -> Box<dyn GaussianFilter> {
+        Box::new(self.clone())
     }
 
     fn state(&self) -> &Step {
@@ -361,7 +367,7 @@ impl GaussianFilter for Ekf {
 
 /// The augmented state (x̂(t|t), 0) and covariance diag(P(t|t), Q) of a time update with the
 /// noise as an input of f.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Augmented {
     x: Vec<f64>,
     p: Vec<f64>,
@@ -385,6 +391,7 @@ impl Augmented {
 }
 
 /// The UKF between steps, with its sigma points and scratch.
+#[derive(Clone)]
 pub(crate) struct Ukf {
     ws: Step,
     /// The points of x̂(t|t−1), P(t|t−1) through h.
@@ -401,6 +408,7 @@ pub(crate) struct Ukf {
 }
 
 /// A sigma-point set for one dimension d, mapped to `out` numbers per point, with its scratch.
+#[derive(Clone)]
 struct PointSet {
     weights: Weights,
     factor: Vec<f64>,
@@ -424,6 +432,7 @@ impl PointSet {
 
 /// The square-root UKF's scratch: the weighted deviations (n × columns) for the QR, its
 /// Householder vector, a downdate vector, and K S^(1/2) with S's factor.
+#[derive(Clone)]
 struct SqrtScratch {
     columns: Vec<f64>,
     reflector: Vec<f64>,
@@ -482,6 +491,9 @@ impl Ukf {
 impl GaussianFilter for Ukf {
     fn name(&self) -> &'static str {
         "unscented Kalman filter"
+    }
+    fn boxed_clone(&self) -> Box<dyn GaussianFilter> {
+        Box::new(self.clone())
     }
 
     fn state(&self) -> &Step {
@@ -816,6 +828,7 @@ fn blocks<'a>(
 
 /// One filter's state and step buffers (run-time sizes, allocated once per call, and again
 /// only when a streaming filter's sensor changes m).
+#[derive(Clone)]
 pub(crate) struct Step {
     n: usize,
     m: usize,
@@ -1116,6 +1129,17 @@ impl Step {
             } else {
                 filt.copy_from_slice(pred);
             }
+        }
+    }
+
+    /// Makes `(x, p)` the filtered state x̂(t|t), P(t|t), in place of the update's (the
+    /// interacting multiple-model filter's mixed state, Söderström (9.72)–(9.73)). The
+    /// square-root UKF's factor is that of `p` (a semidefinite P has one).
+    pub(crate) fn set_filtered(&mut self, x: &[f64], p: &[f64]) {
+        self.x_filt.copy_from_slice(x);
+        self.p_filt.copy_from_slice(p);
+        if let Some(Factors { filt, .. }) = &mut self.factors {
+            semidefinite_cholesky(filt, p, self.n);
         }
     }
 

@@ -22,6 +22,19 @@ pub struct NonlinearKalmanFilter {
     noise: NoiseScratch,
 }
 
+impl Clone for NonlinearKalmanFilter {
+    fn clone(&self) -> Self {
+        NonlinearKalmanFilter {
+            model: Arc::clone(&self.model),
+            filter: self.filter.boxed_clone(),
+            t: self.t,
+            filtered: self.filtered,
+            loglik: self.loglik,
+            noise: self.noise.clone(),
+        }
+    }
+}
+
 impl NonlinearKalmanFilter {
     /// The EKF (with `options`) from the prior (x0, P0).
     pub fn ekf(model: Arc<NonlinearModel>, x0: &[f64], p0: &[f64], options: EkfOptions) -> Result<Self> {
@@ -64,6 +77,16 @@ impl NonlinearKalmanFilter {
     /// The sum of the log-likelihood terms of the updates so far.
     pub fn loglik(&self) -> f64 {
         self.loglik
+    }
+
+    /// The log-likelihood term of the last update (0 when nothing was observed).
+    pub fn loglik_t(&self) -> f64 {
+        self.filter.state().loglik_t()
+    }
+
+    /// The number of outputs m of the model's h.
+    pub fn n_obs(&self) -> usize {
+        self.model.n_obs()
     }
 
     /// The measurement update with y(t) (NaN: missing) by the model's h and R.
@@ -118,6 +141,15 @@ impl NonlinearKalmanFilter {
         self.loglik += self.filter.state().loglik_t();
         self.filtered = true;
         Ok(())
+    }
+
+    /// Makes `(x, p)` the filtered estimate x̂(t|t), P(t|t) of this step, in place of an
+    /// update's: the interacting multiple-model filter's mixed state (Söderström
+    /// (9.72)–(9.74)) or a Gaussian-sum filter's merged component; the next
+    /// [`predict`](Self::predict) starts from it. `x` has n values, `p` n × n.
+    pub fn set_filtered(&mut self, x: &[f64], p: &[f64]) {
+        self.filter.state_mut().set_filtered(x, p);
+        self.filtered = true;
     }
 
     /// The time update to t + 1 (from x̂(t|t), or from x̂(t|t−1) when there was no update).

@@ -3,6 +3,7 @@
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
 mod model;
+mod multiple;
 mod nonlinear;
 mod solvers;
 
@@ -357,6 +358,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<nonlinear::PyNonlinearModel>()?;
     m.add_class::<nonlinear::PyNonlinearKalmanFilter>()?;
     m.add_class::<nonlinear::PyParticleFilter>()?;
+    m.add_class::<multiple::PyMultipleModelFilter>()?;
     m.add_function(wrap_pyfunction!(nonlinear::median_filter, m)?)?;
     m.add_function(wrap_pyfunction!(nonlinear::mean_filter, m)?)?;
     m.add_class::<streaming::PyKalmanFilter>()?;

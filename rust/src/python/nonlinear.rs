@@ -631,7 +631,7 @@ impl PyNonlinearModel {
 /// wrap it.
 #[pyclass(module = "kfast._kfast", name = "NonlinearKalmanFilter")]
 pub(super) struct PyNonlinearKalmanFilter {
-    inner: nonlinear::NonlinearKalmanFilter,
+    pub(super) inner: nonlinear::NonlinearKalmanFilter,
 }
 
 #[pymethods]

@@ -292,7 +292,7 @@ fn resume_filter(
 /// True
 #[pyclass(module = "kfast._kfast", name = "KalmanFilter")]
 pub(super) struct PyKalmanFilter {
-    inner: filter::KalmanFilter,
+    pub(super) inner: filter::KalmanFilter,
     origin: Origin,
     last: StepData,
 }

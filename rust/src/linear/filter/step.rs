@@ -165,6 +165,15 @@ impl<D: Dims> Workspace<D> {
         symmetrize(self.p_pred.get_mut(), self.d.n());
     }
 
+    /// Sets x̂(t|t), P(t|t) in place of an update's, for a time update with no update terms
+    /// (no predictor gain, no N): the multiple-model filter's mixed state.
+    #[inline(always)]
+    pub fn set_filtered(&mut self, x: &[f64], p: &[f64]) {
+        self.x_filt.get_mut().copy_from_slice(x);
+        self.p_filt.get_mut().copy_from_slice(p);
+        self.m_obs = 0;
+    }
+
     /// Makes this workspace ready to take the step that `other` would take next: the same
     /// configuration and prior x̂(t|t−1), P(t|t−1). Only for a step with a missing value (which
     /// recomputes everything else, frozen gains included). Copying nothing else matters for

@@ -97,6 +97,21 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         Ok(())
     }
 
+    /// Makes `(x, p)` the filtered estimate x̂(t|t), P(t|t) of this step, in place of an
+    /// update's: the interacting multiple-model filter's mixed state (Söderström
+    /// (9.72)–(9.74)) or a Gaussian-sum filter's merged component. The next
+    /// [`predict`](Self::predict) is F x + B u and F p F' + Q, without an update's N terms
+    /// (the multiple-model filter refuses models with N). `x` has n values, `p` n × n.
+    pub fn set_filtered(&mut self, x: &[f64], p: &[f64]) {
+        self.ws.0.set_filtered(x, p);
+        self.updated = true;
+    }
+
+    /// The log-likelihood term of the last update (0 when nothing was observed).
+    pub fn loglik_t(&self) -> f64 {
+        self.ws.0.loglik_t()
+    }
+
     /// `update(y, u)` then `predict(u)`.
     pub fn step(&mut self, y: &[f64], u: Option<&[f64]>) -> Result<()> {
         self.update(y, u)?;
@@ -238,6 +253,8 @@ trait Stream: std::fmt::Debug + Send + Sync {
     fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()>;
     fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool);
     fn add_loglik(&self, sum: &mut LoglikSum);
+    fn loglik_t(&self) -> f64;
+    fn set_filtered(&mut self, x: &[f64], p: &[f64]);
     fn x_pred(&self) -> &[f64];
     fn p_pred(&self) -> &[f64];
     fn x_filt(&self) -> &[f64];
@@ -270,6 +287,12 @@ where
     }
     fn add_loglik(&self, sum: &mut LoglikSum) {
         Workspace::add_loglik(self, sum)
+    }
+    fn loglik_t(&self) -> f64 {
+        Workspace::loglik_t(self)
+    }
+    fn set_filtered(&mut self, x: &[f64], p: &[f64]) {
+        Workspace::set_filtered(self, x, p)
     }
     fn x_pred(&self) -> &[f64] {
         Workspace::x_pred(self)
