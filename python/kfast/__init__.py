@@ -35,6 +35,7 @@ from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
+from kfast.nonlinear.quantized import Quantized, QuantizedMoments, quantize, quantized_loglik, quantized_moments, sheppard
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.multiple import IMMFilter, IMMResult, gaussian_sum, imm_filter, model_bank
@@ -63,6 +64,12 @@ __all__ = [
     "median_filter",
     "mean_filter",
     "order_statistic_pdf",
+    "quantize",
+    "sheppard",
+    "quantized_loglik",
+    "quantized_moments",
+    "QuantizedMoments",
+    "Quantized",
     "IMMFilter",
     "IMMResult",
     "imm_filter",

@@ -26,6 +26,8 @@ class NoStabilizingSolutionError(KfastError):
     """A Riccati equation has no stabilizing solution."""
 
 
+# a quantizing sensor: (delta, low, high)
+Quantizer = tuple[NDArray[np.float64], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
 PointsSpec = tuple[str, float, float, float, Optional[NDArray[np.float64]], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
 """kfast.sigma.SigmaPoints._spec(): kind, alpha, beta, kappa and a custom set's unit points, Wm, Wc."""
 
@@ -199,6 +201,7 @@ class NonlinearModel:
         keep: Optional[Keep] = None,
         u: Optional[NDArray[np.float64]] = None,
         threads: Optional[int] = None,
+        quantized: Optional[Quantizer] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,
@@ -336,6 +339,7 @@ class ParticleFilter:
         ess_threshold: Optional[float] = None,
         seed: int = 0,
         threads: Optional[int] = None,
+        quantized: Optional[Quantizer] = None,
     ) -> None: ...
     def update(self, y: NDArray[np.float64], u: Optional[NDArray[np.float64]] = None) -> float: ...
     def predict(self, u: Optional[NDArray[np.float64]] = None) -> bool: ...
@@ -385,3 +389,13 @@ class MultipleModelFilter:
 
 def median_filter(u: NDArray[np.float64], n: int, mode: str) -> NDArray[np.float64]: ...
 def mean_filter(u: NDArray[np.float64], n: int, mode: str) -> NDArray[np.float64]: ...
+def quantize(x: NDArray[np.float64], delta: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def quantized_loglik(
+    y: NDArray[np.float64],
+    y_hat: NDArray[np.float64],
+    std: NDArray[np.float64],
+    delta: NDArray[np.float64],
+    low: Optional[NDArray[np.float64]] = None,
+    high: Optional[NDArray[np.float64]] = None,
+) -> NDArray[np.float64]: ...
+def quantized_moments(delta: float, mean: float, std: float, distribution: str) -> tuple[float, float, float]: ...

@@ -48,7 +48,9 @@
 //! - [`nonlinear::particle_filter`] ([`nonlinear::ParticleOptions`], a
 //!   [`nonlinear::Resampling`] scheme) and the streaming [`nonlinear::ParticleFilter`]: the
 //!   particle filter of the same model, on all cores, fixed by its seed;
-//!   [`nonlinear::median_filter`] / [`nonlinear::mean_filter`]: the running median and mean.
+//!   [`nonlinear::median_filter`] / [`nonlinear::mean_filter`]: the running median and mean;
+//!   [`nonlinear::quantize`], [`nonlinear::quantized_loglik`] and [`nonlinear::quantized_moments`]:
+//!   quantized measurements.
 //! - [`multiple::MultipleModelFilter`]: the interacting multiple-model filter, the fixed
 //!   model bank and the Gaussian-sum filter over linear or nonlinear modes
 //!   ([`multiple::ModeFilter`]), modes of different sizes related by [`multiple::StateMap`]s.

@@ -256,7 +256,7 @@ fn the_particle_filter_approaches_the_kalman_filter_on_any_number_of_threads() {
     let mut runs = Vec::new();
     for threads in [1, 2, 4] {
         options.threads = Some(threads);
-        runs.push(particle_filter(&nonlinear(), series, None, &X0, &P0, options).unwrap());
+        runs.push(particle_filter(&nonlinear(), series, None, &X0, &P0, options.clone()).unwrap());
     }
     for other in &runs[1..] {
         assert_eq!(other.x_filt, runs[0].x_filt);

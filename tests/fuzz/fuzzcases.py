@@ -418,6 +418,23 @@ _ENTRY_LIST += [
     Entry("model_bank", "cv", "kfast.model_bank([M, M], {kw})", (*_CV, _MODE_PROBS)),
 ]
 _ENTRY_LIST += [
+    # quantized measurements
+    Entry("quantize", "ric", "kfast.quantize({kw})",
+          (Arg("x", "np.array([[0.3, -1.5], [2.5, 0.49], [0.0, 7.0]])", shape=(3, 2), data=True, free_length=True,
+               alt_shapes=((2,), (2, 3, 2), (3, 2, 2), (1, 3, 2)), names=("x", "delta")),  # any leading axes
+           Arg("delta", "np.array([0.5, 1.0])", shape=(2,), alt_shapes=((),), names=("delta", "x"))), result_name="quantized"),
+    Entry("sheppard", "ric", "kfast.sheppard({kw})",
+          (Arg("R", "R1", shape=(1, 1), alt_shapes=((),), cov=True), Arg("delta", "0.5", kind="float")), result_name="R"),
+    Entry("quantized_loglik", "ric", "kfast.quantized_loglik({kw})",
+          (Arg("y", "np.array([1.0, -0.5])", shape=(2,), data=True, names=("y", "y_hat")),
+           Arg("y_hat", "np.array([[0.9, -0.4], [1.2, 0.1], [0.0, 0.0]])", shape=(3, 2), free_length=True),
+           Arg("R", "np.diag([0.1, 0.2])", shape=(2, 2)), Arg("delta", "np.array([0.5, 0.5])", shape=(2,), alt_shapes=((),))),
+          result_name="loglik", inf_ok=True),
+    Entry("quantized_moments", "ric", "kfast.quantized_moments({kw})",
+          (Arg("delta", "1.0", kind="float"), Arg("mean", "0.3", kind="float"), Arg("std", "0.4", kind="float"),
+           Arg("distribution", "'gaussian'", kind="str", optional=True))),
+]
+_ENTRY_LIST += [
     # the compiled model's simulation kernel (reachable as model._core.propagate)
     Entry("propagate", "io", "M._core.propagate({kw})",
           (Arg("x_init", "X0", shape=(3,)), Arg("w", "np.zeros((6, 3))", shape=(6, 3)), Arg("v", "np.zeros((6, 2))", shape=(6, 2)),
@@ -512,7 +529,7 @@ def _unchanged(before, value) -> bool:
 
 
 _COV_FIELDS = {"P_pred", "P_filt", "P_smooth", "P_next", "S", "y_cov", "P", "Qd", "Q", "R", "P_lagged", "P_window", "P0"}
-_NAN_OK = {"innov", "se", "cov"}  # innovations where y is missing; fit's covariance when not PD
+_NAN_OK = {"innov", "se", "cov", "quantized"}  # innovations where y is missing; fit's covariance when not PD; quantize(NaN)
 _NEG_INF_OK = {"loglik", "loglik_t"}
 _SKIP = {"optimizer", "closed_loop_eigenvalues"}
 _ECHOES = {"lag", "t_point"}  # result fields that echo an integer argument

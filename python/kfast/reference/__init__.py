@@ -67,3 +67,7 @@ __all__ += ["median_filter", "mean_filter"]
 from kfast.reference.multiple import gaussian_sum_filter, imm_filter, model_bank  # noqa: E402
 
 __all__ += ["imm_filter", "model_bank", "gaussian_sum_filter"]
+
+from kfast.reference import quantized  # noqa: E402  (quantize, moments_over_cells, moments_by_series, quantized_loglik)
+
+__all__ += ["quantized"]

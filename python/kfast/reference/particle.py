@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from kfast.reference.nonlinear import psd_cholesky, wrap
+from kfast.reference.quantized import quantized_loglik
 
 __all__ = ["Stream", "normal_quantile", "resample", "particle_filter", "PRIOR", "PROCESS_NOISE", "RESAMPLING"]
 
@@ -133,12 +134,13 @@ def resample(scheme, w, stream):
 
 
 def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multinomial", ess_threshold=None,
-                    seed=0, u=None, angles=(), g=None, noise_input=False):
+                    seed=0, u=None, angles=(), g=None, noise_input=False, quantized=None):
     """The SIR particle filter with the model as proposal; x(0|-1) ~ N(x0, P0).
 
     f, h batched as kfast's (``f(X, t, u)``, or ``f(X, W, t, u)`` with ``noise_input``; ``g``
-    a batched noise gain giving (k, n, r)). Returns a dict of x_filt, P_filt, ess, resampled,
-    loglik_t and loglik.
+    a batched noise gain giving (k, n, r)). ``quantized``: the steps delta (m,) of a quantized
+    measurement y = Q_delta(h(x) + v), whose likelihood is the probability of y's cell (R
+    diagonal). Returns a dict of x_filt, P_filt, ess, resampled, loglik_t and loglik.
     """
     y = np.asarray(y, dtype=float)
     y = y[:, None] if y.ndim == 1 else y
@@ -159,12 +161,16 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
         if obs.any():
             R_t = Rs[t] if Rs.ndim == 3 else Rs
             Ro = R_t[np.ix_(obs, obs)]
+            if quantized is not None:
+                Y_hat = np.asarray(h(X, t, u_t), dtype=float)
+                loglik_i = quantized_loglik(y[t], Y_hat, np.sqrt(np.diag(R_t)), np.broadcast_to(quantized, (m,)))
             E = y[t][obs] - np.asarray(h(X, t, u_t), dtype=float)[:, obs]
             for j, i in enumerate(np.flatnonzero(obs)):
                 if i in angles:
                     E[:, j] = wrap(E[:, j])
             maha = np.einsum("ij,ij->i", E, np.linalg.solve(Ro, E.T).T)
-            loglik_i = -0.5 * (obs.sum() * np.log(2 * np.pi) + np.linalg.slogdet(Ro)[1] + maha)
+            if quantized is None:
+                loglik_i = -0.5 * (obs.sum() * np.log(2 * np.pi) + np.linalg.slogdet(Ro)[1] + maha)
             a = log_w + loglik_i
             top = a.max()
             increment = top + np.log(np.sum(np.exp(a - top)))

@@ -15,7 +15,8 @@
 //! [`NonlinearKalmanFilter`] runs either filter one step at a time; [`particle_filter`] (with
 //! [`ParticleOptions`] and a [`Resampling`] scheme) is the sequential Monte Carlo filter of
 //! the same model; [`median_filter`] and [`mean_filter`] are the running order-statistic and
-//! moving-average filters of Söderström section 9.7.
+//! moving-average filters of Söderström section 9.7; [`quantize`], [`quantized_loglik`] and
+//! [`quantized_moments`] are the quantized measurements of section 9.6.
 
 mod batch;
 mod filter;
@@ -24,6 +25,7 @@ mod median;
 mod model;
 pub mod models;
 mod particle;
+mod quantized;
 mod sigma;
 mod smoother;
 mod square_root;
@@ -36,7 +38,12 @@ pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use median::{mean_filter, median_filter, StartUp};
 pub use model::NonlinearModel;
 pub use particle::{
-    particle_filter, particle_filter_into, ParticleFilter, ParticleOptions, ParticleOutputs, ParticleResult, Resampling,
+    particle_filter, particle_filter_into, MeasurementLikelihood, ParticleFilter, ParticleOptions, ParticleOutputs,
+    ParticleResult, Resampling,
+};
+pub use quantized::{
+    log_normal_cdf, log_normal_interval, quantize, quantize_into, quantized_loglik, quantized_moments, Distribution,
+    QuantizedMoments, QuantizedSensor,
 };
 pub use sigma::{CustomPoints, SigmaPoints};
 pub use smoother::{smooth_nonlinear_into, SmoothMethod};

@@ -361,6 +361,9 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<multiple::PyMultipleModelFilter>()?;
     m.add_function(wrap_pyfunction!(nonlinear::median_filter, m)?)?;
     m.add_function(wrap_pyfunction!(nonlinear::mean_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(nonlinear::quantize, m)?)?;
+    m.add_function(wrap_pyfunction!(nonlinear::quantized_loglik, m)?)?;
+    m.add_function(wrap_pyfunction!(nonlinear::quantized_moments, m)?)?;
     m.add_class::<streaming::PyKalmanFilter>()?;
     m.add_class::<streaming::PyFixedLagSmoother>()?;
     m.add_function(wrap_pyfunction!(solvers::solve_discrete_lyapunov, m)?)?;

@@ -459,7 +459,7 @@ impl PyNonlinearModel {
 
     /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
     /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
-    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None))]
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, quantized=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn particle_filter<'py>(
@@ -475,8 +475,9 @@ impl PyNonlinearModel {
         keep: Option<&str>,
         u: Option<Array<'py>>,
         threads: Option<usize>,
+        quantized: Option<Quantizer<'py>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, quantized)?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, steps) = (self.inner.n_states(), y.steps());
@@ -732,7 +733,7 @@ pub(super) struct PyParticleFilter {
 #[pymethods]
 impl PyParticleFilter {
     #[new]
-    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None))]
+    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, quantized=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -745,9 +746,10 @@ impl PyParticleFilter {
         ess_threshold: Option<f64>,
         seed: u64,
         threads: Option<usize>,
+        quantized: Option<Quantizer<'_>>,
     ) -> PyResult<Self> {
         let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, quantized)?;
         let shared = Arc::clone(&model.shared);
         let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
         Ok(PyParticleFilter { inner })
@@ -811,16 +813,28 @@ impl PyParticleFilter {
     }
 }
 
-/// The particle filter's options from Python's arguments.
+/// A quantizing sensor from Python: (delta, low, high), the bounds optional.
+type Quantizer<'py> = (Array<'py>, Option<Array<'py>>, Option<Array<'py>>);
+
+/// The particle filter's options from Python's arguments; `quantized` makes the likelihood
+/// that of a quantized measurement.
 fn particle_options(
     particles: usize,
     resample: &str,
     ess_threshold: Option<f64>,
     seed: u64,
     threads: Option<usize>,
-) -> Result<nonlinear::ParticleOptions> {
+    quantized: Option<Quantizer<'_>>,
+) -> PyResult<nonlinear::ParticleOptions> {
     let resampling = nonlinear::Resampling::from_name(resample)?;
-    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads })
+    let likelihood = match quantized {
+        None => nonlinear::MeasurementLikelihood::Gaussian,
+        Some((delta, low, high)) => {
+            let delta = delta.as_slice().map_err(|_| KfastError::new_err("likelihood: delta is not contiguous"))?;
+            nonlinear::MeasurementLikelihood::Quantized(quantized_sensor(delta, low.as_ref(), high.as_ref())?)
+        }
+    };
+    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads, likelihood })
 }
 
 /// The causal running median of window `n` of each column of `u` (T, k); `mode` "valid" or
@@ -853,4 +867,73 @@ fn order_filter<'py>(
     let values = u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?;
     let out = py.detach(|| filter(values, shape[0], shape[1], n, start))?;
     Ok(out.into_pyarray(py).reshape(shape)?.into_any())
+}
+
+/// Q_Δ(x) of each row of `x` (.., m), component i with step `delta[i]` (Söderström (9.101),
+/// half up).
+#[pyfunction]
+pub(super) fn quantize<'py>(py: Python<'py>, x: Array<'py>, delta: Array<'py>) -> PyResult<Bound<'py, PyAny>> {
+    let shape = x.shape().to_vec();
+    let values = x.as_slice().map_err(|_| KfastError::new_err("x: array is not contiguous"))?;
+    let steps = delta.as_slice().map_err(|_| KfastError::new_err("delta: array is not contiguous"))?;
+    let mut out = vec![0.0; values.len()];
+    py.detach(|| nonlinear::quantize_into(values, steps, &mut out))?;
+    Ok(out.into_pyarray(py).reshape(shape)?.into_any())
+}
+
+/// The log-likelihood of the quantized measurement `y` (m,) for each row of `y_hat` (M, m);
+/// see `nonlinear::quantized_loglik`.
+#[pyfunction]
+#[pyo3(signature = (y, y_hat, std, delta, low=None, high=None))]
+pub(super) fn quantized_loglik<'py>(
+    py: Python<'py>,
+    y: Array<'py>,
+    y_hat: Array<'py>,
+    std: Array<'py>,
+    delta: Array<'py>,
+    low: Option<Array<'py>>,
+    high: Option<Array<'py>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    fn slice<'a>(name: &str, a: &'a Array<'_>) -> PyResult<&'a [f64]> {
+        a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))
+    }
+    let (y, y_hat, std, delta) = (slice("y", &y)?, slice("y_hat", &y_hat)?, slice("R", &std)?, slice("delta", &delta)?);
+    let sensor = quantized_sensor(delta, low.as_ref(), high.as_ref())?;
+    let rows = if y.is_empty() { 0 } else { y_hat.len() / y.len() };
+    let mut out = vec![0.0; rows];
+    py.detach(|| nonlinear::quantized_loglik(&sensor, y, y_hat, std, &mut out))?;
+    Ok(out.into_pyarray(py).into_any())
+}
+
+/// The quantizing sensor of steps `delta` and optional (`low`, `high`) levels.
+fn quantized_sensor(
+    delta: &[f64],
+    low: Option<&Array<'_>>,
+    high: Option<&Array<'_>>,
+) -> PyResult<nonlinear::QuantizedSensor> {
+    let values = |a: &Array<'_>| -> PyResult<Vec<f64>> {
+        Ok(a.as_slice().map_err(|_| KfastError::new_err("bounds: array is not contiguous"))?.to_vec())
+    };
+    let bounds = match (low, high) {
+        (Some(low), Some(high)) => Some((values(low)?, values(high)?)),
+        _ => None,
+    };
+    Ok(nonlinear::QuantizedSensor::new(delta.to_vec(), bounds)?)
+}
+
+/// (mean, second moment, variance) of Q_Δ(x), x "gaussian" or "uniform" with the given mean
+/// and standard deviation; see `nonlinear::quantized_moments`.
+#[pyfunction]
+pub(super) fn quantized_moments(delta: f64, mean: f64, std: f64, distribution: &str) -> PyResult<(f64, f64, f64)> {
+    let dist = match distribution {
+        "gaussian" => nonlinear::Distribution::Gaussian,
+        "uniform" => nonlinear::Distribution::Uniform,
+        other => {
+            return Err(KfastError::new_err(format!(
+                "distribution: expected \"gaussian\" or \"uniform\", got {other:?}"
+            )))
+        }
+    };
+    let q = nonlinear::quantized_moments(delta, mean, std, dist)?;
+    Ok((q.mean, q.second_moment, q.var))
 }

@@ -5,7 +5,7 @@
 //! are Python callables, which hold the GIL (then everything runs on one thread).
 
 use super::exp::exp_nonpositive;
-use super::filter::ParticleOptions;
+use super::filter::{MeasurementLikelihood, ParticleOptions};
 use super::random::{NormalScratch, Purpose, Stream};
 use super::resample::{resample, Scratch};
 use crate::core::alloc::check_f64_arrays;
@@ -15,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::nonlinear::filter::{check_finite, Sensor};
 use crate::nonlinear::function::{wrap_angle, PointFunction};
 use crate::nonlinear::model::{NoiseEntry, NonlinearModel};
+use crate::nonlinear::quantized::{log_cell_probability, QuantizedSensor};
 use crate::nonlinear::sigma::{cholesky, semidefinite_cholesky};
 
 /// The particles in a block: fixed, so that the blocks' partial sums (and so the rounding) do
@@ -79,6 +80,7 @@ impl Cloud {
         let per_particle: [&[usize]; 6] =
             [&[count, n], &[count, n], &[count, m], &[count, 2 * r], &[count, work], &[count, 4]];
         check_f64_arrays("n_particles", &[&per_particle[..], &[&[blocks, n * n + n + 2]]].concat())?;
+        let likelihood = Likelihood::new(m, &options.likelihood)?;
         Ok(Cloud {
             options,
             n,
@@ -94,7 +96,7 @@ impl Cloud {
             noise: vec![0.0; count * r],
             noise_work: vec![0.0; count * work],
             factor: vec![0.0; n.max(r) * n.max(r)],
-            likelihood: Likelihood::new(m),
+            likelihood,
             ess: count as f64,
             normals: vec![NormalScratch::default(); blocks],
             outcomes: (0..blocks).map(|_| Ok(())).collect(),
@@ -160,27 +162,29 @@ impl Cloud {
         let blocks = blocks.zip(self.log_w.par_chunks(BLOCK)).zip(self.w.par_chunks_mut(BLOCK));
         let blocks = blocks.zip(self.partials.par_chunks_mut(1)).zip(self.outcomes.par_iter_mut());
         blocks.for_each(|(((((x, images), log_w), sums), top), outcome)| {
-            *outcome = (|| {
-                let k = log_w.len();
-                if per_block {
-                    h.eval(x, k, t, u, images)?;
-                }
-                check_finite("h", t, images, "returned a")?;
-                let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
-                match (likelihood.observed.len(), likelihood.any_angle) {
-                    (1, false) => {
-                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density_scalar(image))
+            *outcome =
+                (|| {
+                    let k = log_w.len();
+                    if per_block {
+                        h.eval(x, k, t, u, images)?;
                     }
-                    (_, false) => {
-                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<false>(image))
+                    check_finite("h", t, images, "returned a")?;
+                    let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
+                    match (likelihood.observed.len(), likelihood.any_angle) {
+                        _ if likelihood.quantized.is_some() => rows
+                            .for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_cell_probability(image)),
+                        (1, false) => {
+                            rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density_scalar(image))
+                        }
+                        (_, false) => rows
+                            .for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<false>(image)),
+                        (_, true) => {
+                            rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<true>(image))
+                        }
                     }
-                    (_, true) => {
-                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<true>(image))
-                    }
-                }
-                top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                Ok(())
-            })();
+                    top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    Ok(())
+                })();
         });
         let failed = first_error(&mut self.outcomes);
         let blocks = self.blocks();
@@ -433,8 +437,12 @@ fn first_error(outcomes: &mut [Result<()>]) -> Result<()> {
     first
 }
 
-/// The Gaussian likelihood N(y; h(x), R) of one step on its observed components.
+/// The likelihood of one step on its observed components: Gaussian N(y; h(x), R), or the
+/// probability of a quantized measurement's cell.
 struct Likelihood {
+    /// The quantizing sensor, and per observed component its cell [lo, hi) and noise std.
+    quantized: Option<QuantizedSensor>,
+    cells: Vec<(f64, f64, f64)>,
     observed: Vec<usize>,
     /// y on the observed components.
     y_obs: Vec<f64>,
@@ -449,8 +457,20 @@ struct Likelihood {
 }
 
 impl Likelihood {
-    fn new(m: usize) -> Self {
-        Likelihood {
+    fn new(m: usize, kind: &MeasurementLikelihood) -> Result<Self> {
+        let quantized = match kind {
+            MeasurementLikelihood::Gaussian => None,
+            MeasurementLikelihood::Quantized(sensor) if sensor.n_obs() != m => {
+                return Err(Error::arg(
+                    "likelihood",
+                    format!("the quantizer has {} components (delta), the model {m} outputs", sensor.n_obs()),
+                ))
+            }
+            MeasurementLikelihood::Quantized(sensor) => Some(sensor.clone()),
+        };
+        Ok(Likelihood {
+            quantized,
+            cells: Vec::with_capacity(m),
             observed: Vec::with_capacity(m),
             y_obs: Vec::with_capacity(m),
             angle: Vec::with_capacity(m),
@@ -458,7 +478,7 @@ impl Likelihood {
             l_inv: vec![0.0; m * m],
             r_obs: vec![0.0; m * m],
             constant: 0.0,
-        }
+        })
     }
 
     /// Sets up step t; false when nothing is observed.
@@ -475,6 +495,9 @@ impl Likelihood {
         self.angle.clear();
         self.angle.extend(self.observed.iter().map(|i| sensor.angles.contains(i)));
         self.any_angle = self.angle.contains(&true);
+        if self.quantized.is_some() {
+            return self.prepare_cells(sensor.r, y, t).map(|()| true);
+        }
         for (a, &i) in self.observed.iter().enumerate() {
             for (b, &j) in self.observed.iter().enumerate() {
                 self.r_obs[a * mo + b] = sensor.r[i * m + j];
@@ -504,6 +527,39 @@ impl Likelihood {
         }
         l.copy_from_slice(inverse);
         Ok(true)
+    }
+
+    /// The cells of the observed components of y(t) and their noise std (R diagonal there).
+    fn prepare_cells(&mut self, r: &[f64], y: &[f64], t: usize) -> Result<()> {
+        let (m, Some(quantizer)) = (y.len(), &self.quantized) else { return Ok(()) };
+        self.cells.clear();
+        for &i in &self.observed {
+            if let Some(&j) = self.observed.iter().find(|&&j| j != i && r[i * m + j] != 0.0) {
+                return Err(Error::arg_at(
+                    "R",
+                    t,
+                    format!("components {i} and {j} are correlated: the quantized likelihood needs R diagonal"),
+                ));
+            }
+            let (lo, hi) = quantizer.cell(i, y[i]).map_err(|e| e.at_step(Some(t)))?;
+            self.cells.push((lo, hi, r[i * m + i].sqrt()));
+        }
+        Ok(())
+    }
+
+    /// log P(y's cells | image): the quantized likelihood on the observed components. An
+    /// angle's image is first moved by whole turns to within π of its cell (the mass that
+    /// wraps around more than once is neglected).
+    #[inline(always)]
+    fn log_cell_probability(&self, image: &[f64]) -> f64 {
+        let cells = self.observed.iter().zip(&self.cells).zip(&self.angle);
+        cells
+            .map(|((&i, &(lo, hi, std)), &angle)| {
+                let centre = 0.5 * (lo + hi);
+                let pred = if angle && centre.is_finite() { centre - wrap_angle(centre - image[i]) } else { image[i] };
+                log_cell_probability(lo, hi, pred, std)
+            })
+            .sum()
     }
 
     /// log N(y; image, R) on the observed components (`ANGLES`: some are angles, whose

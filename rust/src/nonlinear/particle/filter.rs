@@ -6,6 +6,7 @@
 //!
 //! ```text
 //! ℓⁱ = log p(y(t) | xⁱ)                      Gaussian: N(y; h(xⁱ), R), observed components only
+//!                                             (or a quantized measurement's cell: [`MeasurementLikelihood`])
 //! loglik_t = log Σᵢ exp(λⁱ + ℓⁱ)             the estimate of log p(y(t) | y(0..t−1))
 //! λⁱ ← λⁱ + ℓⁱ − loglik_t                     Söderström (9.94), in logs
 //! x̂(t|t) = Σ Wⁱ xⁱ,  P(t|t) = Σ Wⁱ (xⁱ − x̂)(xⁱ − x̂)'        (9.99)–(9.100), Wⁱ = exp λⁱ
@@ -26,9 +27,24 @@ use crate::core::batch::{par, thread_count};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::nonlinear::model::NonlinearModel;
+use crate::nonlinear::quantized::QuantizedSensor;
+
+/// How the particle filter weighs y(t) given a particle's h(x): ℓ = log p(y(t) | x).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum MeasurementLikelihood {
+    /// y = h(x) + v, v ~ N(0, R): log N(y; h(x), R) on the observed components (angular
+    /// outputs with their residuals wrapped).
+    #[default]
+    Gaussian,
+    /// y = Q_Δ(h(x) + v), v ~ N(0, R) with R diagonal (Söderström section 9.6): the log
+    /// probability of y's cell, Σ_i log P(y_i − Δ_i/2 ≤ h_i(x) + v_i < y_i + Δ_i/2)
+    /// ([`quantized_loglik`](crate::nonlinear::quantized_loglik)); an angular output's h(x) is
+    /// first moved by whole turns to within π of y's cell.
+    Quantized(QuantizedSensor),
+}
 
 /// The particle filter's settings.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct ParticleOptions {
     /// M, the number of particles (at least 1).
     pub particles: usize,
@@ -43,12 +59,21 @@ pub struct ParticleOptions {
     /// callables, which hold the GIL). The work is split in blocks of a size fixed by M alone and
     /// the blocks' sums are added in order, so the result does not depend on it.
     pub threads: Option<usize>,
+    /// p(y | x): Gaussian (the default) or quantized.
+    pub likelihood: MeasurementLikelihood,
 }
 
 impl ParticleOptions {
     /// M particles, multinomial resampling every step (Söderström (9.95)–(9.97)), seed 0.
     pub fn new(particles: usize) -> Self {
-        ParticleOptions { particles, resampling: Resampling::Multinomial, ess_threshold: None, seed: 0, threads: None }
+        ParticleOptions {
+            particles,
+            resampling: Resampling::Multinomial,
+            ess_threshold: None,
+            seed: 0,
+            threads: None,
+            likelihood: MeasurementLikelihood::Gaussian,
+        }
     }
 
     pub(crate) fn check(&self) -> Result<()> {
@@ -145,8 +170,9 @@ pub fn particle_filter_into(
     options.check()?;
     let (n, count) = (model.n_states(), options.particles);
     let every_step = check_outputs(&out, steps, n, count)?;
+    let requested = options.threads;
     let mut cloud = Cloud::new(model, options)?;
-    let threads = if model.parallel() { thread_count(options.threads, cloud.blocks()) } else { 1 };
+    let threads = if model.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
     let mut loglik = 0.0;
     par::on_threads(threads, || {
         cloud.draw_prior(x0, p0);

@@ -13,6 +13,8 @@ mod random;
 mod resample;
 mod streaming;
 
-pub use filter::{particle_filter, particle_filter_into, ParticleOptions, ParticleOutputs, ParticleResult};
+pub use filter::{
+    particle_filter, particle_filter_into, MeasurementLikelihood, ParticleOptions, ParticleOutputs, ParticleResult,
+};
 pub use resample::Resampling;
 pub use streaming::ParticleFilter;

@@ -30,8 +30,9 @@ impl ParticleFilter {
         let n = model.n_states();
         check_prior(n, x0, p0)?;
         options.check()?;
+        let requested = options.threads;
         let mut cloud = Cloud::new(&model, options)?;
-        let threads = if model.parallel() { thread_count(options.threads, cloud.blocks()) } else { 1 };
+        let threads = if model.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
         let pool = Pool::new(threads)?;
         let (mut x, mut p) = (vec![0.0; n], vec![0.0; n * n]);
         let ess = pool.install(|| {
