@@ -35,10 +35,18 @@ from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
-from kfast.nonlinear.quantized import Quantized, QuantizedMoments, quantize, quantized_loglik, quantized_moments, sheppard
+from kfast.nonlinear.quantized import (
+    Quantized,
+    QuantizedMoments,
+    quantize,
+    quantized_loglik,
+    quantized_moments,
+    quantized_second_moment,
+    sheppard,
+)
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, ParticleFilter, UnscentedKalmanFilter
 from kfast.nonlinear.batch import ekf_batch, ukf_batch
-from kfast.multiple import IMMFilter, IMMResult, gaussian_sum, imm_filter, model_bank
+from kfast.multiple import IMM, IMMFilter, IMMResult, ModelBank, gaussian_sum, imm_filter, model_bank
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
@@ -68,9 +76,12 @@ __all__ = [
     "sheppard",
     "quantized_loglik",
     "quantized_moments",
+    "quantized_second_moment",
     "QuantizedMoments",
     "Quantized",
     "IMMFilter",
+    "IMM",
+    "ModelBank",
     "IMMResult",
     "imm_filter",
     "model_bank",

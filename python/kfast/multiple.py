@@ -15,7 +15,7 @@ of step 0, mu(0|-1); each step is the update with y(t), then the time update.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from typing import Any, Literal, Mapping, Optional, Sequence, Union, cast
 
 import numpy as np
@@ -29,7 +29,7 @@ from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.streaming import ExtendedKalmanFilter, UnscentedKalmanFilter
 from kfast.sigma import SigmaPoints
 
-__all__ = ["IMMResult", "IMMFilter", "imm_filter", "model_bank", "gaussian_sum"]
+__all__ = ["IMMResult", "IMMFilter", "IMM", "ModelBank", "imm_filter", "model_bank", "gaussian_sum"]
 
 Model = Union[LinearGaussian, NonlinearModel]
 Method = Literal["ekf", "ukf"]
@@ -482,3 +482,73 @@ class IMMFilter:
 
     def __repr__(self) -> str:
         return f"IMMFilter(t={self.t}, r={len(self._models)})"
+
+
+@dataclass(frozen=True, repr=False)
+class _Bank:
+    """The models and options of a multiple-model filter, run by ``filter``."""
+
+    models: Sequence[Model]
+    _: KW_ONLY
+    mode_probs: Optional[ArrayLike] = None
+    state_maps: Optional[Mapping[tuple[int, int], StateMap]] = None
+    method: Method = "ekf"
+    form: Optional[str] = None
+    points: Optional[SigmaPoints] = None
+    iterations: Optional[int] = None
+    iteration: Optional[str] = None
+    order: Optional[int] = None
+
+    def _options(self) -> dict[str, Any]:
+        return dict(mode_probs=self.mode_probs, state_maps=self.state_maps, method=self.method, form=self.form,
+                    points=self.points, iterations=self.iterations, iteration=self.iteration, order=self.order)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(r={len(self.models)}, method={self.method!r})"
+
+
+@dataclass(frozen=True, repr=False)
+class IMM(_Bank):
+    """The interacting multiple-model filter as an object: ``kfast.IMM(models, transition=Pi,
+    mode_probs=mu0).filter(y, x0, P0)`` is :func:`imm_filter` (Söderström (9.64)-(9.86));
+    ``.stream(x0, P0)`` its :class:`IMMFilter`. ``mode_probs`` is the prior of the modes at
+    y(0): cbar(0) = mu0, no transition applied before the first update. A one-mode IMM is the
+    mode's own filter. The other arguments as :func:`imm_filter`.
+
+    >>> slow = kfast.LinearGaussian(F=0.95, H=1.0, Q=0.01, R=0.25)
+    >>> fast = kfast.LinearGaussian(F=0.5, H=1.0, Q=0.09, R=0.25)
+    >>> imm = kfast.IMM([slow, fast], transition=[[0.98, 0.02], [0.02, 0.98]])
+    >>> imm.filter([4.9, 4.7, 4.6], x0=5.0, P0=1.0).mode_probs.shape
+    (3, 2)
+    """
+
+    transition: Optional[ArrayLike] = None
+
+    def filter(self, y: ArrayLike, x0: Any, P0: Any, u: Any = None, *, outputs: Optional[Sequence[str]] = None,
+               modes: bool = True) -> IMMResult:
+        """The IMM over y (T, m) from the prior x0, P0 (as :func:`imm_filter`)."""
+        if self.transition is None:
+            raise _kfast.KfastError("transition: required (the fixed bank without switching is kfast.ModelBank)")
+        return imm_filter(self.models, self.transition, y, x0, P0, u=u, outputs=outputs, modes=modes, **self._options())
+
+    def stream(self, x0: Any, P0: Any) -> IMMFilter:
+        """The same filter one measurement at a time, from the prior x0, P0."""
+        options = self._options()
+        return IMMFilter(self.models, self.transition, x0, P0, options.pop("mode_probs"), **options)
+
+
+@dataclass(frozen=True, repr=False)
+class ModelBank(_Bank):
+    """The fixed multiple-model bank as an object: ``kfast.ModelBank(models,
+    mode_probs=mu0).filter(y, x0, P0)`` is :func:`model_bank` (Söderström (9.56)-(9.63)): the
+    system is one of the models and never switches. Arguments as :func:`model_bank`."""
+
+    def filter(self, y: ArrayLike, x0: Any, P0: Any, u: Any = None, *, outputs: Optional[Sequence[str]] = None,
+               modes: bool = True) -> IMMResult:
+        """The bank over y (T, m) from the prior x0, P0 (as :func:`model_bank`)."""
+        return model_bank(self.models, y, x0, P0, u=u, outputs=outputs, modes=modes, **self._options())
+
+    def stream(self, x0: Any, P0: Any) -> IMMFilter:
+        """The same bank one measurement at a time, from the prior x0, P0."""
+        options = self._options()
+        return IMMFilter(self.models, None, x0, P0, options.pop("mode_probs"), **options)

@@ -71,6 +71,32 @@ def test_identical_modes_are_the_kalman_filter():
     assert one.loglik == pytest.approx(kf.loglik, rel=1e-12)
 
 
+def test_the_object_forms_are_the_functions():
+    """kfast.IMM(models, transition=, mode_probs=).filter(y, x0, P0), kfast.ModelBank and
+    NonlinearModel.gaussian_sum (the interfaces the design pins) give the functions' numbers."""
+    _, models = cv_models()
+    y = simulate_cv(6)
+    x0, P0 = np.zeros(2), np.eye(2) * 5
+    imm = kfast.IMM(models, transition=TRANS, mode_probs=[0.7, 0.3])
+    by_object, by_function = imm.filter(y, x0, P0), kfast.imm_filter(models, TRANS, y, x0, P0, mode_probs=[0.7, 0.3])
+    for name in ("x_filt", "P_filt", "mode_probs", "loglik_t"):
+        np.testing.assert_array_equal(getattr(by_object, name), getattr(by_function, name))
+    stream = imm.stream(x0, P0)
+    for t, value in enumerate(y[:5]):
+        stream.update(value)
+        np.testing.assert_array_equal(stream.mode_probs, by_function.mode_probs[t])
+        stream.predict()
+    bank = kfast.ModelBank(models, mode_probs=[0.5, 0.5]).filter(y, x0, P0)
+    np.testing.assert_array_equal(bank.mode_probs, kfast.model_bank(models, y, x0, P0, mode_probs=[0.5, 0.5]).mode_probs)
+    with pytest.raises(ValueError, match="transition"):
+        kfast.IMM(models).filter(y, x0, P0)
+    model = kfast.NonlinearModel(lambda X, t, u: 0.9 * X, lambda X, t, u: X**2 / 20, Q=0.5, R=0.1, n=1)
+    yq = np.array([0.8, 0.7, 0.9])
+    method = model.gaussian_sum(yq, [[-4.0], [4.0]], [[[1.0]], [[1.0]]], method="ukf")
+    function = kfast.gaussian_sum(model, yq, [[-4.0], [4.0]], [[[1.0]], [[1.0]]], method="ukf")
+    np.testing.assert_array_equal(method.x_filt, function.x_filt)
+
+
 def test_imm_equals_filterpy_step_for_step():
     fp = pytest.importorskip("filterpy.kalman")
     dicts, models = cv_models()

@@ -244,3 +244,16 @@ def test_a_quantized_angle_is_compared_within_a_turn():
     runs = [m.particle_filter(y, 3.12, 1e-3, n_particles=500, seed=7, likelihood=kfast.Quantized(0.05)) for m in (wrapped, plain)]
     np.testing.assert_allclose(runs[0].x_filt, runs[1].x_filt, rtol=1e-12)
     np.testing.assert_allclose(runs[0].loglik_t, runs[1].loglik_t, rtol=1e-9)
+
+
+def test_the_second_moment_in_the_issues_form():
+    """kfast.quantized_second_moment(delta, dist="normal", std=) or dist="uniform", low=, high="""
+    delta = 0.5
+    normal = kfast.quantized_second_moment(delta, "normal", std=0.2, mean=0.1)
+    assert normal == pytest.approx(moments_over_cells(delta, 0.1, 0.2, "gaussian")[1], rel=1e-12)
+    uniform = kfast.quantized_second_moment(delta, "uniform", low=-0.3, high=0.9)
+    assert uniform == pytest.approx(moments_over_cells(delta, 0.3, 1.2 / np.sqrt(12), "uniform")[1], rel=1e-12)
+    for kw, arg in [(dict(dist="normal"), "std"), (dict(dist="uniform", low=1.0, high=0.0), "low"),
+                    (dict(dist="cauchy", std=1.0), "dist"), (dict(dist="uniform", std=1.0), "low")]:
+        with pytest.raises(ValueError, match=arg):
+            kfast.quantized_second_moment(delta, **kw)

@@ -20,6 +20,7 @@ from kfast.sigma import SigmaPoints, merwe
 
 if TYPE_CHECKING:
     from kfast.linear.model import LinearGaussian
+    from kfast.multiple import IMMResult
 
 __all__ = ["NonlinearModel", "BuiltinFunction"]
 
@@ -426,6 +427,16 @@ class NonlinearModel:
         args = self._data(y, x0, P0, u)
         out = self._core.particle_filter(*args[:3], keep=keep, u=args[3], **options)
         return ParticleResult(**out)
+
+    def gaussian_sum(self, y: ArrayLike, means: ArrayLike, covs: ArrayLike, weights: Optional[ArrayLike] = None,
+                     u: Optional[ArrayLike] = None, **options: Any) -> "IMMResult":
+        """The Gaussian-sum filter of this model (Söderström (9.43)-(9.55)) from the prior
+        mixture sum_i weights[i] N(means[i], covs[i]): :func:`kfast.gaussian_sum` with this
+        model (options ``method``, ``prune``, ``merge``, ... as there; pruning and merging off
+        by default)."""
+        from kfast.multiple import gaussian_sum
+
+        return gaussian_sum(self, y, means, covs, weights, u, **options)
 
     def _points(self, points: Optional[SigmaPoints]) -> SigmaPoints:
         points = merwe() if points is None else points

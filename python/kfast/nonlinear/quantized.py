@@ -19,7 +19,7 @@ from kfast import _kfast
 from kfast._args import choice
 from kfast._arrays import as_float64
 
-__all__ = ["quantize", "sheppard", "quantized_loglik", "quantized_moments", "QuantizedMoments", "Quantized"]
+__all__ = ["quantize", "sheppard", "quantized_loglik", "quantized_moments", "quantized_second_moment", "QuantizedMoments", "Quantized"]
 
 
 def _steps(delta: ArrayLike, m: int, allow_zero: bool = False) -> np.ndarray:
@@ -256,3 +256,31 @@ def quantized_moments(
         values[name] = float(arr)
     first, second, var = _kfast.quantized_moments(values["delta"], values["mean"], values["std"], distribution)
     return QuantizedMoments(first, second, var, values["std"] ** 2 + values["delta"] ** 2 / 12.0)
+
+
+def quantized_second_moment(
+    delta: float,
+    dist: Literal["normal", "uniform"] = "normal",
+    std: Optional[float] = None,
+    mean: float = 0.0,
+    low: Optional[float] = None,
+    high: Optional[float] = None,
+) -> float:
+    """E x_Q^2, the exact second moment of the quantized variable Q_delta(x) (Söderström
+    (9.131), the sum over all k != 0): x ~ N(mean, std^2) (``dist="normal"``) or uniform on
+    [low, high] (``dist="uniform"``). :func:`quantized_moments` gives the mean and variance too.
+
+    >>> round(kfast.quantized_second_moment(1.0, "uniform", low=-0.5, high=0.5), 12)
+    0.0
+    """
+    choice("dist", dist, ("normal", "uniform"))
+    if dist == "normal":
+        if std is None or low is not None or high is not None:
+            raise _kfast.KfastError("std: dist='normal' takes mean and std (not low, high)")
+        return quantized_moments(delta, mean, std, "gaussian").second_moment
+    if low is None or high is None or std is not None:
+        raise _kfast.KfastError("low: dist='uniform' takes low and high (not std)")
+    lo, hi = (float(as_float64(name, v)) for name, v in (("low", low), ("high", high)))
+    if not lo < hi:
+        raise _kfast.KfastError(f"low: must be below high, got low = {lo}, high = {hi}")
+    return quantized_moments(delta, 0.5 * (lo + hi), (hi - lo) / np.sqrt(12.0), "uniform").second_moment
