@@ -35,6 +35,7 @@ from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
 from kfast.nonlinear.median import mean_filter, median_filter, order_statistic_pdf
+from kfast.nonlinear.likelihood import StudentT, UniformNoise
 from kfast.nonlinear.quantized import (
     Quantized,
     QuantizedMoments,
@@ -79,6 +80,8 @@ __all__ = [
     "quantized_second_moment",
     "QuantizedMoments",
     "Quantized",
+    "StudentT",
+    "UniformNoise",
     "IMMFilter",
     "IMM",
     "ModelBank",

@@ -28,6 +28,8 @@ class NoStabilizingSolutionError(KfastError):
 
 # a quantizing sensor: (delta, low, high)
 Quantizer = tuple[NDArray[np.float64], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
+# the particle filter's likelihood: (kind, nu, quantizer)
+LikelihoodSpec = tuple[str, float, Optional[Quantizer]]
 PointsSpec = tuple[str, float, float, float, Optional[NDArray[np.float64]], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
 """kfast.sigma.SigmaPoints._spec(): kind, alpha, beta, kappa and a custom set's unit points, Wm, Wc."""
 
@@ -201,7 +203,7 @@ class NonlinearModel:
         keep: Optional[Keep] = None,
         u: Optional[NDArray[np.float64]] = None,
         threads: Optional[int] = None,
-        quantized: Optional[Quantizer] = None,
+        likelihood: Optional[LikelihoodSpec] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,
@@ -339,7 +341,7 @@ class ParticleFilter:
         ess_threshold: Optional[float] = None,
         seed: int = 0,
         threads: Optional[int] = None,
-        quantized: Optional[Quantizer] = None,
+        likelihood: Optional[LikelihoodSpec] = None,
     ) -> None: ...
     def update(self, y: NDArray[np.float64], u: Optional[NDArray[np.float64]] = None) -> float: ...
     def predict(self, u: Optional[NDArray[np.float64]] = None) -> bool: ...

@@ -15,7 +15,7 @@ from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import FilterOutputs, Form, Iteration, Keep, Resample, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
 from kfast.nonlinear.particle import ParticleResult
-from kfast.nonlinear.quantized import Quantized
+from kfast.nonlinear.likelihood import Likelihood, _spec as _likelihood_spec
 from kfast.sigma import SigmaPoints, merwe
 
 if TYPE_CHECKING:
@@ -359,7 +359,7 @@ class NonlinearModel:
         u: Optional[ArrayLike] = None,
         keep: Optional[Keep] = None,
         threads: Optional[int] = None,
-        likelihood: Optional[Quantized] = None,
+        likelihood: Optional[Likelihood] = None,
     ) -> ParticleResult:
         """The particle filter: sequential importance resampling with the model as proposal
         (the bootstrap filter of Söderström (9.89)-(9.100)).
@@ -404,8 +404,10 @@ class NonlinearModel:
             Threads for the particle loops (all cores by default; one for Python callables,
             which hold the GIL). The particles are processed in blocks of a fixed size and the
             blocks' sums added in order, so the result is the same bits for any thread count.
-        likelihood : kfast.Quantized, optional
-            None: l_i = log N(y(t); h(x_i), R). ``kfast.Quantized(delta, bounds=None)``: y is
+        likelihood : kfast.StudentT, kfast.UniformNoise or kfast.Quantized, optional
+            None: l_i = log N(y(t); h(x_i), R). ``kfast.StudentT(nu)``: multivariate Student-t
+            noise of scale R (heavy tails, robust to outliers). ``kfast.UniformNoise()``: noise
+            uniform on +-sqrt(3 R_ii) (R diagonal). ``kfast.Quantized(delta, bounds=None)``: y is
             quantized, y = Q_delta(h(x) + v) (Söderström section 9.6), and l_i is the log
             probability of y's cell (R diagonal; see :func:`kfast.quantized_loglik`).
 
@@ -476,10 +478,8 @@ def _particle_options(
     n_particles: object, resample: object, ess_threshold: object, seed: object, threads: object, likelihood: object, m: int
 ) -> dict[str, Any]:
     """The particle filters' options, checked (as keyword arguments of the compiled calls)."""
-    if likelihood is not None and not isinstance(likelihood, Quantized):
-        raise _kfast.KfastError(f"likelihood: expected None (Gaussian) or a kfast.Quantized, got {type(likelihood).__name__}")
     return {
-        "quantized": None if likelihood is None else likelihood._spec(m),
+        "likelihood": _likelihood_spec(likelihood, m),
         "n_particles": index("n_particles", n_particles),
         "resample": choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")),
         "ess_threshold": None if ess_threshold is None else _fraction("ess_threshold", ess_threshold),

@@ -13,7 +13,7 @@ from kfast._args import choice, index
 from kfast._arrays import as_float64
 from kfast._typing import Form, Iteration, Resample, UkfForm
 from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _particle_options, _spec
-from kfast.nonlinear.quantized import Quantized
+from kfast.nonlinear.likelihood import Likelihood
 from kfast.sigma import SigmaPoints, merwe
 
 __all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter", "ParticleFilter"]
@@ -174,7 +174,7 @@ class ParticleFilter(_State):
         ess_threshold: Optional[float] = None,
         seed: int = 0,
         threads: Optional[int] = None,
-        likelihood: Optional[Quantized] = None,
+        likelihood: Optional[Likelihood] = None,
     ) -> None:
         self._model = _model(model)
         options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self._model.n_obs)

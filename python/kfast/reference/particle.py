@@ -8,6 +8,8 @@ particles and agree to rounding.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from kfast.reference.nonlinear import psd_cholesky, wrap
@@ -134,13 +136,16 @@ def resample(scheme, w, stream):
 
 
 def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multinomial", ess_threshold=None,
-                    seed=0, u=None, angles=(), g=None, noise_input=False, quantized=None):
+                    seed=0, u=None, angles=(), g=None, noise_input=False, quantized=None, student_t=None,
+                    uniform=False):
     """The SIR particle filter with the model as proposal; x(0|-1) ~ N(x0, P0).
 
     f, h batched as kfast's (``f(X, t, u)``, or ``f(X, W, t, u)`` with ``noise_input``; ``g``
     a batched noise gain giving (k, n, r)). ``quantized``: the steps delta (m,) of a quantized
     measurement y = Q_delta(h(x) + v), whose likelihood is the probability of y's cell (R
-    diagonal). Returns a dict of x_filt, P_filt, ess, resampled, loglik_t and loglik.
+    diagonal). ``student_t``: the degrees of freedom nu of multivariate Student-t noise of scale
+    R. ``uniform``: noise uniform on +-sqrt(3 R_ii). Returns a dict of x_filt, P_filt, ess,
+    resampled, loglik_t and loglik.
     """
     y = np.asarray(y, dtype=float)
     y = y[:, None] if y.ndim == 1 else y
@@ -169,8 +174,16 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
                 if i in angles:
                     E[:, j] = wrap(E[:, j])
             maha = np.einsum("ij,ij->i", E, np.linalg.solve(Ro, E.T).T)
-            if quantized is None:
-                loglik_i = -0.5 * (obs.sum() * np.log(2 * np.pi) + np.linalg.slogdet(Ro)[1] + maha)
+            mo, logdet = obs.sum(), np.linalg.slogdet(Ro)[1]
+            if student_t is not None:
+                nu = student_t
+                loglik_i = (math.lgamma((nu + mo) / 2) - math.lgamma(nu / 2) - mo / 2 * np.log(nu * np.pi) - logdet / 2
+                            - (nu + mo) / 2 * np.log1p(maha / nu))
+            elif uniform:
+                half = np.sqrt(3 * np.diag(Ro))
+                loglik_i = np.where(np.all(np.abs(E) <= half, axis=1), -np.sum(np.log(2 * half)), -np.inf)
+            elif quantized is None:
+                loglik_i = -0.5 * (mo * np.log(2 * np.pi) + logdet + maha)
             a = log_w + loglik_i
             top = a.max()
             increment = top + np.log(np.sum(np.exp(a - top)))

@@ -459,7 +459,7 @@ impl PyNonlinearModel {
 
     /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
     /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
-    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, quantized=None))]
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, likelihood=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn particle_filter<'py>(
@@ -475,9 +475,9 @@ impl PyNonlinearModel {
         keep: Option<&str>,
         u: Option<Array<'py>>,
         threads: Option<usize>,
-        quantized: Option<Quantizer<'py>>,
+        likelihood: Option<LikelihoodSpec<'py>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, quantized)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood)?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, steps) = (self.inner.n_states(), y.steps());
@@ -733,7 +733,7 @@ pub(super) struct PyParticleFilter {
 #[pymethods]
 impl PyParticleFilter {
     #[new]
-    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, quantized=None))]
+    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, likelihood=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -746,10 +746,10 @@ impl PyParticleFilter {
         ess_threshold: Option<f64>,
         seed: u64,
         threads: Option<usize>,
-        quantized: Option<Quantizer<'_>>,
+        likelihood: Option<LikelihoodSpec<'_>>,
     ) -> PyResult<Self> {
         let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, quantized)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood)?;
         let shared = Arc::clone(&model.shared);
         let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
         Ok(PyParticleFilter { inner })
@@ -815,24 +815,32 @@ impl PyParticleFilter {
 
 /// A quantizing sensor from Python: (delta, low, high), the bounds optional.
 type Quantizer<'py> = (Array<'py>, Option<Array<'py>>, Option<Array<'py>>);
+/// The particle filter's likelihood from Python: ("student_t", ν, None), ("uniform", 0, None)
+/// or ("quantized", 0, quantizer); None is the Gaussian.
+type LikelihoodSpec<'py> = (String, f64, Option<Quantizer<'py>>);
 
-/// The particle filter's options from Python's arguments; `quantized` makes the likelihood
-/// that of a quantized measurement.
+/// The particle filter's options from Python's arguments.
 fn particle_options(
     particles: usize,
     resample: &str,
     ess_threshold: Option<f64>,
     seed: u64,
     threads: Option<usize>,
-    quantized: Option<Quantizer<'_>>,
+    likelihood: Option<LikelihoodSpec<'_>>,
 ) -> PyResult<nonlinear::ParticleOptions> {
+    use nonlinear::MeasurementLikelihood as Kind;
     let resampling = nonlinear::Resampling::from_name(resample)?;
-    let likelihood = match quantized {
-        None => nonlinear::MeasurementLikelihood::Gaussian,
-        Some((delta, low, high)) => {
-            let delta = delta.as_slice().map_err(|_| KfastError::new_err("likelihood: delta is not contiguous"))?;
-            nonlinear::MeasurementLikelihood::Quantized(quantized_sensor(delta, low.as_ref(), high.as_ref())?)
-        }
+    let likelihood = match likelihood {
+        None => Kind::Gaussian,
+        Some((kind, nu, quantizer)) => match (kind.as_str(), quantizer) {
+            ("student_t", _) => Kind::StudentT { nu },
+            ("uniform", _) => Kind::Uniform,
+            ("quantized", Some((delta, low, high))) => {
+                let delta = delta.as_slice().map_err(|_| KfastError::new_err("likelihood: delta is not contiguous"))?;
+                Kind::Quantized(quantized_sensor(delta, low.as_ref(), high.as_ref())?)
+            }
+            (other, _) => return Err(KfastError::new_err(format!("likelihood: unknown kind {other:?}"))),
+        },
     };
     Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads, likelihood })
 }

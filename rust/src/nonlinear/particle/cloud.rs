@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::nonlinear::filter::{check_finite, Sensor};
 use crate::nonlinear::function::{wrap_angle, PointFunction};
 use crate::nonlinear::model::{NoiseEntry, NonlinearModel};
-use crate::nonlinear::quantized::{log_cell_probability, QuantizedSensor};
+use crate::nonlinear::quantized::log_cell_probability;
 use crate::nonlinear::sigma::{cholesky, semidefinite_cholesky};
 
 /// The particles in a block: fixed, so that the blocks' partial sums (and so the rounding) do
@@ -162,29 +162,38 @@ impl Cloud {
         let blocks = blocks.zip(self.log_w.par_chunks(BLOCK)).zip(self.w.par_chunks_mut(BLOCK));
         let blocks = blocks.zip(self.partials.par_chunks_mut(1)).zip(self.outcomes.par_iter_mut());
         blocks.for_each(|(((((x, images), log_w), sums), top), outcome)| {
-            *outcome =
-                (|| {
-                    let k = log_w.len();
-                    if per_block {
-                        h.eval(x, k, t, u, images)?;
+            *outcome = (|| {
+                let k = log_w.len();
+                if per_block {
+                    h.eval(x, k, t, u, images)?;
+                }
+                check_finite("h", t, images, "returned a")?;
+                let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
+                match (&likelihood.kind, likelihood.observed.len(), likelihood.any_angle) {
+                    (MeasurementLikelihood::Quantized(_), ..) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_cell_probability(image))
                     }
-                    check_finite("h", t, images, "returned a")?;
-                    let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
-                    match (likelihood.observed.len(), likelihood.any_angle) {
-                        _ if likelihood.quantized.is_some() => rows
-                            .for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_cell_probability(image)),
-                        (1, false) => {
-                            rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density_scalar(image))
-                        }
-                        (_, false) => rows
-                            .for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<false>(image)),
-                        (_, true) => {
-                            rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<true>(image))
-                        }
+                    (MeasurementLikelihood::Uniform, ..) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_uniform(image))
                     }
-                    top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                    Ok(())
-                })();
+                    (&MeasurementLikelihood::StudentT { nu }, _, false) => rows
+                        .for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_student::<false>(image, nu)),
+                    (&MeasurementLikelihood::StudentT { nu }, _, true) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_student::<true>(image, nu))
+                    }
+                    (_, 1, false) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density_scalar(image))
+                    }
+                    (_, _, false) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<false>(image))
+                    }
+                    (_, _, true) => {
+                        rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_density::<true>(image))
+                    }
+                }
+                top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                Ok(())
+            })();
         });
         let failed = first_error(&mut self.outcomes);
         let blocks = self.blocks();
@@ -437,11 +446,11 @@ fn first_error(outcomes: &mut [Result<()>]) -> Result<()> {
     first
 }
 
-/// The likelihood of one step on its observed components: Gaussian N(y; h(x), R), or the
-/// probability of a quantized measurement's cell.
+/// The likelihood of one step on its observed components ([`MeasurementLikelihood`]).
 struct Likelihood {
-    /// The quantizing sensor, and per observed component its cell [lo, hi) and noise std.
-    quantized: Option<QuantizedSensor>,
+    kind: MeasurementLikelihood,
+    /// Per observed component: its quantization cell [lo, hi) and noise std, or (−a, a, 0)
+    /// for uniform noise of half-width a.
     cells: Vec<(f64, f64, f64)>,
     observed: Vec<usize>,
     /// y on the observed components.
@@ -452,24 +461,23 @@ struct Likelihood {
     /// L⁻¹, L the lower factor of R on the observed components.
     l_inv: Vec<f64>,
     r_obs: Vec<f64>,
-    /// −½ (m_o log 2π + log det R_o).
+    /// The log density's constant: −½ (m_o log 2π + log det R_o) (Gaussian), its Student-t
+    /// form, or −Σ log 2a_i (uniform).
     constant: f64,
 }
 
 impl Likelihood {
     fn new(m: usize, kind: &MeasurementLikelihood) -> Result<Self> {
-        let quantized = match kind {
-            MeasurementLikelihood::Gaussian => None,
-            MeasurementLikelihood::Quantized(sensor) if sensor.n_obs() != m => {
+        if let MeasurementLikelihood::Quantized(sensor) = kind {
+            if sensor.n_obs() != m {
                 return Err(Error::arg(
                     "likelihood",
                     format!("the quantizer has {} components (delta), the model {m} outputs", sensor.n_obs()),
-                ))
+                ));
             }
-            MeasurementLikelihood::Quantized(sensor) => Some(sensor.clone()),
-        };
+        }
         Ok(Likelihood {
-            quantized,
+            kind: kind.clone(),
             cells: Vec::with_capacity(m),
             observed: Vec::with_capacity(m),
             y_obs: Vec::with_capacity(m),
@@ -495,7 +503,7 @@ impl Likelihood {
         self.angle.clear();
         self.angle.extend(self.observed.iter().map(|i| sensor.angles.contains(i)));
         self.any_angle = self.angle.contains(&true);
-        if self.quantized.is_some() {
+        if matches!(self.kind, MeasurementLikelihood::Quantized(_) | MeasurementLikelihood::Uniform) {
             return self.prepare_cells(sensor.r, y, t).map(|()| true);
         }
         for (a, &i) in self.observed.iter().enumerate() {
@@ -513,7 +521,15 @@ impl Likelihood {
             )
         })?;
         let log_det: f64 = 2.0 * (0..mo).map(|a| l[a * mo + a].ln()).sum::<f64>();
-        self.constant = -0.5 * (mo as f64 * (2.0 * std::f64::consts::PI).ln() + log_det);
+        let dims = mo as f64;
+        self.constant = match self.kind {
+            MeasurementLikelihood::StudentT { nu } => {
+                libm::lgamma(0.5 * (nu + dims))
+                    - libm::lgamma(0.5 * nu)
+                    - 0.5 * (dims * (nu * std::f64::consts::PI).ln() + log_det)
+            }
+            _ => -0.5 * (dims * (2.0 * std::f64::consts::PI).ln() + log_det),
+        };
         let inverse = &mut self.r_obs[..mo * mo];
         inverse.fill(0.0);
         for c in 0..mo {
@@ -529,22 +545,60 @@ impl Likelihood {
         Ok(true)
     }
 
-    /// The cells of the observed components of y(t) and their noise std (R diagonal there).
+    /// Per observed component of y(t): its quantization cell and noise std, or the uniform
+    /// noise's half-width (R diagonal there).
     fn prepare_cells(&mut self, r: &[f64], y: &[f64], t: usize) -> Result<()> {
-        let (m, Some(quantizer)) = (y.len(), &self.quantized) else { return Ok(()) };
+        let m = y.len();
         self.cells.clear();
+        self.constant = 0.0;
         for &i in &self.observed {
             if let Some(&j) = self.observed.iter().find(|&&j| j != i && r[i * m + j] != 0.0) {
                 return Err(Error::arg_at(
                     "R",
                     t,
-                    format!("components {i} and {j} are correlated: the quantized likelihood needs R diagonal"),
+                    format!("components {i} and {j} are correlated: this likelihood needs R diagonal"),
                 ));
             }
-            let (lo, hi) = quantizer.cell(i, y[i]).map_err(|e| e.at_step(Some(t)))?;
-            self.cells.push((lo, hi, r[i * m + i].sqrt()));
+            let var = r[i * m + i];
+            match &self.kind {
+                MeasurementLikelihood::Quantized(quantizer) => {
+                    let (lo, hi) = quantizer.cell(i, y[i]).map_err(|e| e.at_step(Some(t)))?;
+                    self.cells.push((lo, hi, var.sqrt()));
+                }
+                _ if var <= 0.0 => {
+                    return Err(Error::arg_at("R", t, format!("component {i}: uniform noise needs a variance > 0")));
+                }
+                _ => {
+                    let half = (3.0 * var).sqrt();
+                    self.cells.push((-half, half, 0.0));
+                    self.constant -= (2.0 * half).ln();
+                }
+            }
         }
         Ok(())
+    }
+
+    /// log of the uniform density: the constant inside every component's box, −∞ outside
+    /// (an angle's residual wrapped).
+    #[inline(always)]
+    fn log_uniform(&self, image: &[f64]) -> f64 {
+        let residuals = self.observed.iter().zip(&self.y_obs).zip(&self.cells).zip(&self.angle);
+        let inside = residuals.into_iter().all(|(((&i, &y), &(_, half, _)), &angle)| {
+            let e = y - image[i];
+            (if angle { wrap_angle(e) } else { e }).abs() <= half
+        });
+        if inside {
+            self.constant
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+
+    /// log of the Student-t density with scale R on the observed components.
+    #[inline(always)]
+    fn log_student<const ANGLES: bool>(&self, image: &[f64], nu: f64) -> f64 {
+        let dims = self.observed.len() as f64;
+        self.constant - 0.5 * (nu + dims) * (self.squares::<ANGLES>(image) / nu).ln_1p()
     }
 
     /// log P(y's cells | image): the quantized likelihood on the observed components. An
@@ -566,6 +620,12 @@ impl Likelihood {
     /// residuals are wrapped; without, no wrapping is even computed).
     #[inline(always)]
     fn log_density<const ANGLES: bool>(&self, image: &[f64]) -> f64 {
+        self.constant - 0.5 * self.squares::<ANGLES>(image)
+    }
+
+    /// e' R⁻¹ e, e = y − image on the observed components.
+    #[inline(always)]
+    fn squares<const ANGLES: bool>(&self, image: &[f64]) -> f64 {
         let mo = self.observed.len();
         let mut squares = 0.0;
         for a in 0..mo {
@@ -576,7 +636,7 @@ impl Likelihood {
             }
             squares += z * z;
         }
-        self.constant - 0.5 * squares
+        squares
     }
 
     /// [`log_density`](Self::log_density) of one observed component that is not an angle.

@@ -36,6 +36,17 @@ pub enum MeasurementLikelihood {
     /// outputs with their residuals wrapped).
     #[default]
     Gaussian,
+    /// y = h(x) + v, v multivariate Student-t with ν degrees of freedom and scale matrix R
+    /// (covariance ν/(ν − 2) R for ν > 2): heavy tails, so that an outlier moves the
+    /// particles' weights far less than under the Gaussian:
+    /// log p = log Γ((ν + m)/2) − log Γ(ν/2) − (m/2) log νπ − ½ log det R − (ν + m)/2 log(1 + e'R⁻¹e/ν).
+    StudentT {
+        /// ν > 0.
+        nu: f64,
+    },
+    /// y = h(x) + v, v_i uniform on ±√(3 R_ii) (R diagonal; its diagonal the variances):
+    /// p = Π 1/(2 a_i) inside the box, 0 outside.
+    Uniform,
     /// y = Q_Δ(h(x) + v), v ~ N(0, R) with R diagonal (Söderström section 9.6): the log
     /// probability of y's cell, Σ_i log P(y_i − Δ_i/2 ≤ h_i(x) + v_i < y_i + Δ_i/2)
     /// ([`quantized_loglik`](crate::nonlinear::quantized_loglik)); an angular output's h(x) is
@@ -77,6 +88,14 @@ impl ParticleOptions {
     }
 
     pub(crate) fn check(&self) -> Result<()> {
+        if let MeasurementLikelihood::StudentT { nu } = self.likelihood {
+            if !(nu.is_finite() && nu > 0.0) {
+                return Err(Error::arg(
+                    "likelihood",
+                    format!("the Student-t's degrees of freedom must be finite and > 0, got {nu}"),
+                ));
+            }
+        }
         if self.particles == 0 {
             return Err(Error::arg("n_particles", "must be at least 1"));
         }
