@@ -204,6 +204,7 @@ class NonlinearModel:
         u: Optional[NDArray[np.float64]] = None,
         threads: Optional[int] = None,
         likelihood: Optional[LikelihoodSpec] = None,
+        regularize: Optional[float] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,
@@ -342,6 +343,7 @@ class ParticleFilter:
         seed: int = 0,
         threads: Optional[int] = None,
         likelihood: Optional[LikelihoodSpec] = None,
+        regularize: Optional[float] = None,
     ) -> None: ...
     def update(self, y: NDArray[np.float64], u: Optional[NDArray[np.float64]] = None) -> float: ...
     def predict(self, u: Optional[NDArray[np.float64]] = None) -> bool: ...

@@ -88,3 +88,43 @@ def test_uniform_noise_bad_input_is_named(likelihood, R_model, arg):
 def test_student_t_needs_positive_degrees_of_freedom(nu):
     with pytest.raises(ValueError, match="nu"):
         kfast.StudentT(nu)
+
+
+@pytest.mark.parametrize("c, ess_threshold", [(1.0, None), (0.5, 0.5)])
+def test_the_regularized_filter_equals_the_reference(c, ess_threshold):
+    y = data(2)
+    model = kfast.NonlinearModel(f, h, Q, R, n=2)
+    res = model.particle_filter(y, np.zeros(2), np.eye(2), n_particles=3000, resample="stratified", ess_threshold=ess_threshold,
+                                seed=9, regularize=c)
+    out = particle_filter(f, h, Q, R, y, np.zeros(2), np.eye(2), 3000, "stratified", ess_threshold, seed=9, regularize=c)
+    np.testing.assert_allclose(res.x_filt, out["x_filt"], rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(res.P_filt, out["P_filt"], rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(res.loglik_t, out["loglik_t"], rtol=1e-9, atol=1e-10)
+    plain = model.particle_filter(y, np.zeros(2), np.eye(2), n_particles=3000, resample="stratified", ess_threshold=ess_threshold, seed=9)
+    assert not np.allclose(plain.x_filt, res.x_filt, rtol=1e-6)
+    streaming = kfast.ParticleFilter(model, np.zeros(2), np.eye(2), n_particles=3000, resample="stratified",
+                                     ess_threshold=ess_threshold, seed=9, regularize=c)
+    for t, value in enumerate(y[:6]):
+        assert streaming.update(value) == res.loglik_t[t]
+        streaming.predict()
+        if res.resampled[t]:
+            break
+
+
+def test_regularization_keeps_the_copies_apart():
+    """Without process noise the resampled copies of a particle stay together: few distinct
+    values remain. The kernel jitter keeps every particle distinct."""
+    model = kfast.NonlinearModel(lambda X, t, u: X, lambda X, t, u: X, Q=0.0, R=0.1, n=1)
+    y = np.full(20, 0.3)
+    distinct = []
+    for regularize in (False, True):
+        res = model.particle_filter(y, 0.0, 1.0, n_particles=2000, resample="systematic", seed=0, keep="last", regularize=regularize)
+        distinct.append(len(np.unique(res.particles[:, 0])))
+    assert distinct[0] < 400 and distinct[1] == 2000, distinct  # 275 of 2000 without, when written
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, np.nan, np.inf, "yes"])
+def test_regularize_bad_values_are_named(value):
+    model = kfast.NonlinearModel(lambda X, t, u: X, lambda X, t, u: X, Q=0.1, R=0.1, n=1)
+    with pytest.raises(ValueError, match="regularize"):
+        model.particle_filter(np.zeros(3), 0.0, 1.0, n_particles=10, regularize=value)

@@ -360,6 +360,7 @@ class NonlinearModel:
         keep: Optional[Keep] = None,
         threads: Optional[int] = None,
         likelihood: Optional[Likelihood] = None,
+        regularize: Union[bool, float] = False,
     ) -> ParticleResult:
         """The particle filter: sequential importance resampling with the model as proposal
         (the bootstrap filter of Söderström (9.89)-(9.100)).
@@ -410,6 +411,13 @@ class NonlinearModel:
             uniform on +-sqrt(3 R_ii) (R diagonal). ``kfast.Quantized(delta, bounds=None)``: y is
             quantized, y = Q_delta(h(x) + v) (Söderström section 9.6), and l_i is the log
             probability of y's cell (R diagonal; see :func:`kfast.quantized_loglik`).
+        regularize : bool or float
+            False (the book): resampled copies of a particle stay identical until the process
+            noise moves them. True, or a factor c > 0: after each resampling every particle moves
+            by h L z, z ~ N(0, I), L L' = P(t|t) and Silverman's bandwidth
+            h = c (4 / (M (n + 2)))^(1/(n + 4)) (c = 1 for True): the regularized particle filter,
+            for small process noise where the copies would otherwise collapse. It widens the
+            filtered density by h^2 P(t|t) at each resampling.
 
         Returns
         -------
@@ -423,7 +431,7 @@ class NonlinearModel:
             Bad arguments; f, h or g returning a non-finite value (naming it and the step); no
             particle explaining y(t) (every likelihood 0: more particles or a wider R).
         """
-        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self.n_obs)
+        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self.n_obs, regularize)
         if keep is not None:
             keep = cast(Keep, choice("keep", keep, ("last", "all")))
         args = self._data(y, x0, P0, u)
@@ -475,10 +483,18 @@ row u (NULL without inputs, else the model's input width) and the k x m results 
 
 
 def _particle_options(
-    n_particles: object, resample: object, ess_threshold: object, seed: object, threads: object, likelihood: object, m: int
+    n_particles: object,
+    resample: object,
+    ess_threshold: object,
+    seed: object,
+    threads: object,
+    likelihood: object,
+    m: int,
+    regularize: object,
 ) -> dict[str, Any]:
     """The particle filters' options, checked (as keyword arguments of the compiled calls)."""
     return {
+        "regularize": _bandwidth(regularize),
         "likelihood": _likelihood_spec(likelihood, m),
         "n_particles": index("n_particles", n_particles),
         "resample": choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")),
@@ -486,6 +502,23 @@ def _particle_options(
         "seed": _seed(seed),
         "threads": None if threads is None else index("threads", threads),
     }
+
+
+def _bandwidth(value: object) -> Optional[float]:
+    """``regularize``: False -> None, True -> 1.0, or a factor > 0."""
+    if value is False or value is None:
+        return None
+    if value is True:
+        return 1.0
+    if isinstance(value, (str, bytes, np.bool_)):
+        raise _kfast.KfastError(f"regularize: expected True, False or a factor > 0, got {value!r}")
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError, OverflowError):
+        raise _kfast.KfastError(f"regularize: expected True, False or a factor > 0, got {value!r}") from None
+    if not (np.isfinite(number) and number > 0):
+        raise _kfast.KfastError(f"regularize: the bandwidth factor must be finite and > 0, got {value!r}")
+    return number
 
 
 def _fraction(name: str, value: object) -> float:

@@ -3,7 +3,7 @@ time."""
 
 from __future__ import annotations
 
-from typing import Any, Optional, Sequence, cast
+from typing import Any, Optional, Sequence, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -175,9 +175,10 @@ class ParticleFilter(_State):
         seed: int = 0,
         threads: Optional[int] = None,
         likelihood: Optional[Likelihood] = None,
+        regularize: Union[bool, float] = False,
     ) -> None:
         self._model = _model(model)
-        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self._model.n_obs)
+        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self._model.n_obs, regularize)
         self._n_particles: int = options["n_particles"]
         x, P = model._prior(x0, P0)
         self._core = _kfast.ParticleFilter(model._core, x, P, **options)

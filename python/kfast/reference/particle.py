@@ -15,11 +15,12 @@ import numpy as np
 from kfast.reference.nonlinear import psd_cholesky, wrap
 from kfast.reference.quantized import quantized_loglik
 
-__all__ = ["Stream", "normal_quantile", "resample", "particle_filter", "PRIOR", "PROCESS_NOISE", "RESAMPLING"]
+__all__ = ["Stream", "normal_quantile", "resample", "particle_filter", "PRIOR", "PROCESS_NOISE", "RESAMPLING", "REGULARIZATION"]
 
 _GAMMA = np.uint64(0x9E3779B97F4A7C15)
-PRIOR, PROCESS_NOISE, RESAMPLING = 1, 2, 3
-"""The purposes of the streams: the prior's particles, a step's process noise, its resampling."""
+PRIOR, PROCESS_NOISE, RESAMPLING, REGULARIZATION = 1, 2, 3, 4
+"""The purposes of the streams: the prior's particles, a step's process noise, its resampling,
+the regularization's kernel jitter."""
 
 
 def _mix(z):
@@ -137,7 +138,7 @@ def resample(scheme, w, stream):
 
 def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multinomial", ess_threshold=None,
                     seed=0, u=None, angles=(), g=None, noise_input=False, quantized=None, student_t=None,
-                    uniform=False):
+                    uniform=False, regularize=None):
     """The SIR particle filter with the model as proposal; x(0|-1) ~ N(x0, P0).
 
     f, h batched as kfast's (``f(X, t, u)``, or ``f(X, W, t, u)`` with ``noise_input``; ``g``
@@ -145,7 +146,8 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
     measurement y = Q_delta(h(x) + v), whose likelihood is the probability of y's cell (R
     diagonal). ``student_t``: the degrees of freedom nu of multivariate Student-t noise of scale
     R. ``uniform``: noise uniform on +-sqrt(3 R_ii). Returns a dict of x_filt, P_filt, ess,
-    resampled, loglik_t and loglik.
+    resampled, loglik_t and loglik. ``regularize`` c: after each resampling x_i += h L z_i,
+    L L' = P(t|t), h = c (4 / (M (n + 2)))^(1/(n + 4)).
     """
     y = np.asarray(y, dtype=float)
     y = y[:, None] if y.ndim == 1 else y
@@ -206,6 +208,10 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
         if due:
             X = X[resample(resample_scheme, W, Stream(seed, t, RESAMPLING))]
             log_w = np.full(M, -np.log(M))
+            if regularize is not None:
+                h_bw = regularize * (4.0 / (M * (n + 2))) ** (1.0 / (n + 4))
+                Z = Stream(seed, t, REGULARIZATION).normal(np.arange(M * n)).reshape(M, n)
+                X = X + h_bw * Z @ psd_cholesky(out["P_filt"][-1]).T
         # the time update (9.98): x <- f(x) + w, w ~ N(0, Q(t))
         Q_t = Qs[t] if Qs.ndim == 3 else Qs
         r = len(Q_t)

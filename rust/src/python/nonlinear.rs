@@ -459,7 +459,7 @@ impl PyNonlinearModel {
 
     /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
     /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
-    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, likelihood=None))]
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, likelihood=None, regularize=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn particle_filter<'py>(
@@ -476,8 +476,9 @@ impl PyNonlinearModel {
         u: Option<Array<'py>>,
         threads: Option<usize>,
         likelihood: Option<LikelihoodSpec<'py>>,
+        regularize: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, regularize)?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, steps) = (self.inner.n_states(), y.steps());
@@ -733,7 +734,7 @@ pub(super) struct PyParticleFilter {
 #[pymethods]
 impl PyParticleFilter {
     #[new]
-    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, likelihood=None))]
+    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, likelihood=None, regularize=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -747,9 +748,10 @@ impl PyParticleFilter {
         seed: u64,
         threads: Option<usize>,
         likelihood: Option<LikelihoodSpec<'_>>,
+        regularize: Option<f64>,
     ) -> PyResult<Self> {
         let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood)?;
+        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, regularize)?;
         let shared = Arc::clone(&model.shared);
         let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
         Ok(PyParticleFilter { inner })
@@ -827,6 +829,7 @@ fn particle_options(
     seed: u64,
     threads: Option<usize>,
     likelihood: Option<LikelihoodSpec<'_>>,
+    regularize: Option<f64>,
 ) -> PyResult<nonlinear::ParticleOptions> {
     use nonlinear::MeasurementLikelihood as Kind;
     let resampling = nonlinear::Resampling::from_name(resample)?;
@@ -842,7 +845,7 @@ fn particle_options(
             (other, _) => return Err(KfastError::new_err(format!("likelihood: unknown kind {other:?}"))),
         },
     };
-    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads, likelihood })
+    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads, likelihood, regularize })
 }
 
 /// The causal running median of window `n` of each column of `u` (T, k); `mode` "valid" or

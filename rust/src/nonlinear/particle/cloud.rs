@@ -48,8 +48,10 @@ pub(crate) struct Cloud {
     /// g(xⁱ) (M × n r) with a noise gain; the points (xⁱ, wⁱ) (M × (n + r)) with the noise an
     /// input of f.
     noise_work: Vec<f64>,
-    /// The lower factor of P0 or Q(t).
+    /// The lower factor of P0, Q(t) or P(t|t).
     factor: Vec<f64>,
+    /// P(t|t) of the last [`moments`](Self::moments), for the regularization's kernel.
+    last_cov: Vec<f64>,
     likelihood: Likelihood,
     /// The effective sample size after the last update.
     ess: f64,
@@ -96,6 +98,7 @@ impl Cloud {
             noise: vec![0.0; count * r],
             noise_work: vec![0.0; count * work],
             factor: vec![0.0; n.max(r) * n.max(r)],
+            last_cov: vec![0.0; n * n],
             likelihood,
             ess: count as f64,
             normals: vec![NormalScratch::default(); blocks],
@@ -276,6 +279,7 @@ impl Cloud {
                 cov[b * n + a] = cov[a * n + b];
             }
         }
+        self.last_cov.copy_from_slice(cov);
         self.ess = total * total / squares;
         self.ess
     }
@@ -303,7 +307,32 @@ impl Cloud {
         self.log_w.fill(-(count as f64).ln());
         self.log_w_offset = 0.0;
         self.w.fill(1.0 / count as f64);
+        if let Some(c) = self.options.regularize {
+            self.jitter(t, c);
+        }
         true
+    }
+
+    /// The regularization after resampling: xⁱ += h L zⁱ, L L' = P(t|t), zⁱ ~ N(0, I), with
+    /// Silverman's bandwidth h = c (4 / (M (n + 2)))^(1/(n + 4)) (see `ParticleOptions`).
+    fn jitter(&mut self, t: usize, c: f64) {
+        let (n, count) = (self.n, self.count());
+        let dims = n as f64;
+        let h = c * (4.0 / (count as f64 * (dims + 2.0))).powf(1.0 / (dims + 4.0));
+        let l = &mut self.factor[..n * n];
+        semidefinite_cholesky(l, &self.last_cov, n);
+        let l = &*l;
+        let stream = Stream::new(self.options.seed, t, Purpose::Regularization);
+        // the normals in `next` (free after the resampling's swap)
+        let blocks = self.x.par_chunks_mut(BLOCK * n).zip(self.next.par_chunks_mut(BLOCK * n));
+        blocks.zip(self.normals.par_iter_mut()).enumerate().for_each(|(b, ((x, z), scratch))| {
+            stream.normals((b * BLOCK * n) as u64, z, scratch);
+            for (xi, zi) in x.chunks_exact_mut(n).zip(z.chunks_exact(n)) {
+                for (a, v) in xi.iter_mut().enumerate() {
+                    *v += h * lower_times(l, n, a, zi);
+                }
+            }
+        });
     }
 
     /// xⁱ ← f(xⁱ, t, u) + wⁱ (or g(xⁱ) wⁱ, or f(xⁱ, wⁱ)), wⁱ = L_Q zⁱ ~ N(0, Q(t)).

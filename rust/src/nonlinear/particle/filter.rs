@@ -72,6 +72,11 @@ pub struct ParticleOptions {
     pub threads: Option<usize>,
     /// p(y | x): Gaussian (the default) or quantized.
     pub likelihood: MeasurementLikelihood,
+    /// `Some(c)`: after each resampling, move every particle by a draw of the Gaussian kernel
+    /// h L z, L L' = P(t|t), z ~ N(0, I), h = c (4 / (M (n + 2)))^(1/(n + 4)) (Silverman's
+    /// bandwidth for a Gaussian density, times c): the regularized particle filter, which
+    /// keeps copies of one particle apart. `None`: off (the book's filter).
+    pub regularize: Option<f64>,
 }
 
 impl ParticleOptions {
@@ -84,6 +89,7 @@ impl ParticleOptions {
             seed: 0,
             threads: None,
             likelihood: MeasurementLikelihood::Gaussian,
+            regularize: None,
         }
     }
 
@@ -94,6 +100,11 @@ impl ParticleOptions {
                     "likelihood",
                     format!("the Student-t's degrees of freedom must be finite and > 0, got {nu}"),
                 ));
+            }
+        }
+        if let Some(c) = self.regularize {
+            if !(c.is_finite() && c > 0.0) {
+                return Err(Error::arg("regularize", format!("the bandwidth factor must be finite and > 0, got {c}")));
             }
         }
         if self.particles == 0 {

@@ -37,6 +37,8 @@ pub(crate) enum Purpose {
     ProcessNoise = 2,
     /// The uniforms of the resampling at step t.
     Resampling = 3,
+    /// The kernel jitter of the regularization after the resampling at step t.
+    Regularization = 4,
 }
 
 /// The draws of one (seed, step, purpose): `bits(i)` is the i-th 64-bit draw.
