@@ -9,6 +9,8 @@ Contenders, timed in one run (rounds interleaved, medians; ns per particle-step)
 - kfast with the model as numba `@cfunc`s (the C signature of kfast.NonlinearModel) and as
   vectorized Python callables (one call of f and one of h per step for all particles);
 - a plain vectorized NumPy bootstrap filter (the same algorithm, NumPy's generator);
+- kfast's built-in with the Student-t likelihood, with the measurements quantized (step 0.5) and
+  the quantized likelihood, and with regularization (their cost beside the Gaussian default);
 - Chopin's `particles` (SMC with a Bootstrap Feynman-Kac model, ESSrmin = 1 so that it resamples
   at every step), which needs numpy < 2 and runs in its own venv (benches/peers_particle.py;
   set KFAST_PARTICLES_PYTHON or create /work/venv-particles as that file says).
@@ -125,6 +127,7 @@ def main(argv=None):
     rounds = 3 if args.quick else 5
     N, T = (20_000, 50) if args.quick else (100_000, 200)
     y = simulate(T)
+    y_quantized = kfast.quantize(y, 0.5)
     builtin = kfast.models.ungm(q=Q, r=R)
     python = kfast.NonlinearModel(ungm_f, ungm_h, [[Q]], [[R]], n=1)
     jitted = numba_model()
@@ -136,6 +139,12 @@ def main(argv=None):
         Contender("kfast numba cfunc, all cores", lambda: jitted.particle_filter(y, [0.0], [[P0]], N, **pf), steps),
         Contender("kfast Python callable", lambda: python.particle_filter(y, [0.0], [[P0]], N, **pf), steps),
         Contender("NumPy bootstrap filter", lambda: numpy_bootstrap(y, N), steps),
+        # kfast's other likelihoods and the regularization, beside its Gaussian default
+        Contender("kfast built-in, Student-t(4) likelihood",
+                  lambda: builtin.particle_filter(y, [0.0], [[P0]], N, likelihood=kfast.StudentT(4.0), **pf), steps),
+        Contender("kfast built-in, quantized y (delta 0.5)",
+                  lambda: builtin.particle_filter(y_quantized, [0.0], [[P0]], N, likelihood=kfast.Quantized(0.5), **pf), steps),
+        Contender("kfast built-in, regularized", lambda: builtin.particle_filter(y, [0.0], [[P0]], N, regularize=True, **pf), steps),
     ]
     if jitted is None:
         contenders[2].error = "numba not installed"
