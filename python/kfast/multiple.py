@@ -503,6 +503,15 @@ class _Bank:
         return dict(mode_probs=self.mode_probs, state_maps=self.state_maps, method=self.method, form=self.form,
                     points=self.points, iterations=self.iterations, iteration=self.iteration, order=self.order)
 
+    def _transition(self) -> Optional[ArrayLike]:
+        """The mode transition matrix (None: a fixed bank)."""
+        return None
+
+    def stream(self, x0: Any, P0: Any) -> IMMFilter:
+        """The same filter one measurement at a time, from the prior x0, P0."""
+        options = self._options()
+        return IMMFilter(self.models, self._transition(), x0, P0, options.pop("mode_probs"), **options)
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}(r={len(self.models)}, method={self.method!r})"
 
@@ -524,6 +533,9 @@ class IMM(_Bank):
 
     transition: Optional[ArrayLike] = None
 
+    def _transition(self) -> Optional[ArrayLike]:
+        return self.transition
+
     def filter(self, y: ArrayLike, x0: Any, P0: Any, u: Any = None, *, outputs: Optional[Sequence[str]] = None,
                modes: bool = True) -> IMMResult:
         """The IMM over y (T, m) from the prior x0, P0 (as :func:`imm_filter`)."""
@@ -531,10 +543,6 @@ class IMM(_Bank):
             raise _kfast.KfastError("transition: required (the fixed bank without switching is kfast.ModelBank)")
         return imm_filter(self.models, self.transition, y, x0, P0, u=u, outputs=outputs, modes=modes, **self._options())
 
-    def stream(self, x0: Any, P0: Any) -> IMMFilter:
-        """The same filter one measurement at a time, from the prior x0, P0."""
-        options = self._options()
-        return IMMFilter(self.models, self.transition, x0, P0, options.pop("mode_probs"), **options)
 
 
 @dataclass(frozen=True, repr=False)
@@ -548,7 +556,3 @@ class ModelBank(_Bank):
         """The bank over y (T, m) from the prior x0, P0 (as :func:`model_bank`)."""
         return model_bank(self.models, y, x0, P0, u=u, outputs=outputs, modes=modes, **self._options())
 
-    def stream(self, x0: Any, P0: Any) -> IMMFilter:
-        """The same bank one measurement at a time, from the prior x0, P0."""
-        options = self._options()
-        return IMMFilter(self.models, None, x0, P0, options.pop("mode_probs"), **options)

@@ -1,17 +1,14 @@
 """The multiple-model filters (IMM, fixed bank, Gaussian sum) against the NumPy reference, the
 Kalman filter they reduce to, filterpy's IMMEstimator and Söderström's Example 9.2."""
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pytest
+import switching
 
 import kfast
 from kfast.reference import kalman_filter
 from kfast.reference.multiple import gaussian_sum_filter, imm_filter, model_bank
 
-DATA = Path(__file__).resolve().parents[1] / "data"
 TRANS = np.array([[0.9, 0.1], [0.2, 0.8]])
 
 
@@ -141,22 +138,9 @@ def test_streaming_gives_the_numbers_of_the_series():
 
 
 def example_9_2(seed):
-    case = json.loads((DATA / "imm_example_9_2.json").read_text())
-    rng = np.random.default_rng(seed)
-    T, modes = case["T"], case["modes"]
-    t = np.arange(T)
-    u = np.where(t % case["u_period"] < case["u_period"] // 2, 1.0, -1.0)
-    true_mode = np.zeros(T, dtype=int)
-    for switch, mode in case["switches"]:
-        true_mode[switch:] = mode
-    x, xs = case["x_true_0"], np.zeros(T)
-    for k in range(T):
-        xs[k] = x
-        m = modes[true_mode[k]]
-        x = m["F"] * x + m["B"] * u[k] + np.sqrt(m["Q"]) * rng.standard_normal()
-    y = xs + np.sqrt(case["R"]) * rng.standard_normal(T)
-    models = [kfast.LinearGaussian(F=m["F"], B=m["B"], H=1.0, Q=m["Q"], R=case["R"]) for m in modes]
-    return case, models, u[:, None], y[:, None], xs, true_mode
+    """Example 9.2 with its modes as kfast models."""
+    case, dicts, u, y, xs, true_mode = switching.example_9_2(seed)
+    return case, [kfast.LinearGaussian(**d) for d in dicts], u, y, xs, true_mode
 
 
 @pytest.mark.parametrize("seed", [11, 12, 13])

@@ -16,16 +16,13 @@ modes by the density at zero of their last S instead of leaving mu = cbar; (5) n
 guard, no likelihood of the data, one u for every mode, modes of one state size only.
 """
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pytest
 from modelgen import random_case
+from switching import example_9_2
 
 from kfast.reference import gaussian_sum_filter, imm_filter, kalman_filter, model_bank
 
-DATA = Path(__file__).parent.parent / "data"
 TRANS = np.array([[0.9, 0.1], [0.2, 0.8]])  # not symmetric: a transposed p fails the tests
 
 
@@ -226,25 +223,6 @@ def test_a_bank_of_different_sizes_has_no_combined_estimate():
 # ----------------------------------------------------------------------------------------------
 # Söderström Example 9.2
 # ----------------------------------------------------------------------------------------------
-
-
-def example_9_2(seed, T=None):
-    """The case, its modes as dicts, u (T, 1), y (T, 1), the true x and the true mode (0 = M1)."""
-    case = json.loads((DATA / "imm_example_9_2.json").read_text(encoding="utf-8"))
-    rng = np.random.default_rng(seed)
-    T, period, modes = T or case["T"], case["u_period"], case["modes"]
-    u = np.where(np.arange(T) % period < period // 2, 1.0, -1.0)
-    true_mode = np.zeros(T, dtype=int)
-    for start, mode in case["switches"]:
-        true_mode[start:] = mode
-    x, xs = case["x_true_0"], np.zeros(T)
-    for t in range(T):
-        xs[t] = x
-        mo = modes[true_mode[t]]
-        x = mo["F"] * x + mo["B"] * u[t] + np.sqrt(mo["Q"]) * rng.standard_normal()
-    y = xs + np.sqrt(case["R"]) * rng.standard_normal(T)
-    dicts = [dict(F=mo["F"], B=mo["B"], H=mo["H"], Q=mo["Q"], R=case["R"]) for mo in modes]
-    return case, dicts, u[:, None], y[:, None], xs, true_mode
 
 
 def rmse(est, xs):

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice
 from kfast._arrays import as_float64
+from kfast.sampling import _covariance, _square
 
 __all__ = ["quantize", "sheppard", "quantized_loglik", "quantized_moments", "quantized_second_moment", "QuantizedMoments", "Quantized"]
 
@@ -85,18 +86,10 @@ def sheppard(R: ArrayLike, delta: ArrayLike) -> np.ndarray:
     ndarray, shape (m, m)
         A new matrix (R is not modified); use it as the model's R.
     """
-    cov = as_float64("R", R)
-    if cov.ndim == 0:
-        cov = cov.reshape(1, 1)
-    if cov.ndim != 2 or cov.shape[0] != cov.shape[1] or cov.size == 0:
-        raise _kfast.KfastError(f"R: expected a scalar or a square (m, m) matrix, got shape {cov.shape}")
-    if not np.all(np.isfinite(cov)):
-        raise _kfast.KfastError("R: must be finite")
-    if not np.allclose(cov, cov.T, rtol=1e-12, atol=0.0):
-        raise _kfast.KfastError("R: must be symmetric")
-    smallest = float(np.linalg.eigvalsh(cov).min())
-    if smallest < -1e-12 * max(float(np.abs(cov).max()), 1e-300):
-        raise _kfast.KfastError(f"R: not positive semidefinite (smallest eigenvalue {smallest:.3g})")
+    square = _square("R", R)
+    if square.size == 0:
+        raise _kfast.KfastError("R: expected a scalar or a non-empty (m, m) matrix, got shape (0, 0)")
+    cov = _covariance("R", square, len(square), size_from="R")
     steps = _steps(delta, cov.shape[0], allow_zero=True)
     corrected = cov + np.diag(steps**2 / 12.0)
     if not np.all(np.isfinite(corrected)):

@@ -162,29 +162,29 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
     out = {k: [] for k in ("x_filt", "P_filt", "ess", "resampled", "loglik_t")}
     for t in range(T):
         u_t = None if u is None else np.asarray(u, dtype=float)[t]
-        # the update: log-weights by the Gaussian likelihood of the observed components (9.94)
+        # the update: log-weights by the likelihood of the observed components (9.94)
         obs = ~np.isnan(y[t])
         increment = 0.0
         if obs.any():
             R_t = Rs[t] if Rs.ndim == 3 else Rs
             Ro = R_t[np.ix_(obs, obs)]
-            if quantized is not None:
-                Y_hat = np.asarray(h(X, t, u_t), dtype=float)
-                loglik_i = quantized_loglik(y[t], Y_hat, np.sqrt(np.diag(R_t)), np.broadcast_to(quantized, (m,)))
-            E = y[t][obs] - np.asarray(h(X, t, u_t), dtype=float)[:, obs]
+            Y_hat = np.asarray(h(X, t, u_t), dtype=float)
+            E = y[t][obs] - Y_hat[:, obs]
             for j, i in enumerate(np.flatnonzero(obs)):
                 if i in angles:
                     E[:, j] = wrap(E[:, j])
             maha = np.einsum("ij,ij->i", E, np.linalg.solve(Ro, E.T).T)
             mo, logdet = obs.sum(), np.linalg.slogdet(Ro)[1]
-            if student_t is not None:
+            if quantized is not None:
+                loglik_i = quantized_loglik(y[t], Y_hat, np.sqrt(np.diag(R_t)), np.broadcast_to(quantized, (m,)))
+            elif student_t is not None:
                 nu = student_t
                 loglik_i = (math.lgamma((nu + mo) / 2) - math.lgamma(nu / 2) - mo / 2 * np.log(nu * np.pi) - logdet / 2
                             - (nu + mo) / 2 * np.log1p(maha / nu))
             elif uniform:
                 half = np.sqrt(3 * np.diag(Ro))
                 loglik_i = np.where(np.all(np.abs(E) <= half, axis=1), -np.sum(np.log(2 * half)), -np.inf)
-            elif quantized is None:
+            else:
                 loglik_i = -0.5 * (mo * np.log(2 * np.pi) + logdet + maha)
             a = log_w + loglik_i
             top = a.max()

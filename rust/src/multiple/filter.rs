@@ -394,7 +394,7 @@ impl MultipleModelFilter {
         if self.updated {
             return Err(Error::arg_at("y", self.t, "update called twice without a predict in between"));
         }
-        self.check_inputs(inputs)?;
+        self.check_inputs(inputs.len())?;
         for (k, mode) in self.modes.iter_mut().enumerate() {
             match mode.update(y, inputs[self.ids[k]]) {
                 Ok(log_l) => self.scratch.log_terms[k] = self.probs_pred[k].ln() + log_l,
@@ -428,13 +428,11 @@ impl MultipleModelFilter {
         Ok(())
     }
 
-    fn check_inputs(&self, inputs: &[Option<&[f64]>]) -> Result<()> {
+    /// One input (or None) per model given.
+    fn check_inputs(&self, count: usize) -> Result<()> {
         let given = self.sizes.len();
-        if inputs.len() != given {
-            return Err(Error::arg(
-                "u",
-                format!("expected one input (or None) per model, {given}, got {}", inputs.len()),
-            ));
+        if count != given {
+            return Err(Error::arg("u", format!("expected one input (or None) per model, {given}, got {count}")));
         }
         Ok(())
     }
@@ -443,7 +441,7 @@ impl MultipleModelFilter {
     /// its mixed state (9.74), (9.76); the bank predicts each mode from its own.
     pub fn predict(&mut self, inputs: &[Option<&[f64]>]) -> Result<()> {
         self.check_usable()?;
-        self.check_inputs(inputs)?;
+        self.check_inputs(inputs.len())?;
         if let Interaction::Markov(_) = self.interaction {
             self.mix();
         }
@@ -578,14 +576,8 @@ impl MultipleModelFilter {
         out: &mut MultipleModelOutputs<'_>,
     ) -> Result<()> {
         let steps = y.steps();
-        let given = self.sizes.len();
-        let (n0, r) = (self.modes[0].n_states(), given);
-        if inputs.len() != given {
-            return Err(Error::arg(
-                "u",
-                format!("expected one input (or None) per model, {given}, got {}", inputs.len()),
-            ));
-        }
+        let (n0, r) = (self.sizes[0], self.sizes.len());
+        self.check_inputs(inputs.len())?;
         if let Some((j, u)) =
             inputs.iter().enumerate().find_map(|(j, u)| u.as_ref().map(|u| (j, u))).filter(|(_, u)| u.steps() != steps)
         {
