@@ -11,9 +11,14 @@ Contenders, timed in one run (rounds interleaved, medians; ns per particle-step)
 - a plain vectorized NumPy bootstrap filter (the same algorithm, NumPy's generator);
 - kfast's built-in with the Student-t likelihood, with the measurements quantized (step 0.5) and
   the quantized likelihood, and with regularization (their cost beside the Gaussian default);
+- kfast's built-in with the Gaussian likelihood given by the user, as a vectorized Python
+  function and as a numba `@cfunc` (what a user-given p(y | x) costs), and with the book's
+  r = 10 copies of each resampled particle;
 - Chopin's `particles` (SMC with a Bootstrap Feynman-Kac model, ESSrmin = 1 so that it resamples
   at every step), which needs numpy < 2 and runs in its own venv (benches/peers_particle.py;
-  set KFAST_PARTICLES_PYTHON or create /work/venv-particles as that file says).
+  set KFAST_PARTICLES_PYTHON or create /work/venv-particles as that file says);
+- Stone Soup's ParticlePredictor / ParticleUpdater / SystematicResampler with UNGM as custom
+  Stone Soup models (benches/peer_stonesoup.py; `pip install stonesoup`, in the bench extras).
 
 Different generators: the filters agree only within Monte-Carlo error, which the run prints (the
 largest |difference of means| to kfast's, over the posterior standard deviation, and each
@@ -104,6 +109,43 @@ def numba_model():
     return kfast.NonlinearModel(f, h, [[Q]], [[R]], n=1)
 
 
+def gaussian_loglik(X, y, t, u):
+    """log N(y; x^2/20, R): the default likelihood, written as a user's."""
+    return -0.5 * (np.log(2 * np.pi * R) + (y[0] - X[:, 0] ** 2 / 20) ** 2 / R)
+
+
+def numba_loglik():
+    """``gaussian_loglik`` as a numba @cfunc of kfast's PARTICLE_C_SIGNATURE (None without numba)."""
+    try:
+        import numba
+        from numba import types
+    except ImportError:
+        return None
+    p = types.CPointer(types.float64)
+    sig = types.void(p, types.intp, types.intp, p, types.intp, types.int64, p, p)
+    constant = -0.5 * np.log(2 * np.pi * R)
+
+    @numba.cfunc(sig, fastmath=False)
+    def loglik(X, k, n, y, m, t, u, out):
+        for i in range(k):
+            e = y[0] - X[i] * X[i] / 20
+            out[i] = constant - 0.5 * e * e / R
+
+    return loglik
+
+
+def stonesoup_contender(y, N, steps):
+    """Stone Soup's bootstrap filter (benches/peer_stonesoup.py), or a row saying why not."""
+    try:
+        import stonesoup
+        from peer_stonesoup import stonesoup_bootstrap
+    except ImportError:
+        row = Contender("Stone Soup", None, steps)
+        row.error = "stonesoup not installed (pip install stonesoup)"
+        return row, None
+    return Contender("Stone Soup", lambda: stonesoup_bootstrap(y, N, Q, R, P0), steps), stonesoup.__version__
+
+
 def run_particles(y, N, rounds):
     """`particles` in its venv: (samples, means, variances, loglik, version) or an error string."""
     if not os.path.exists(PARTICLES_PYTHON):
@@ -131,8 +173,10 @@ def main(argv=None):
     builtin = kfast.models.ungm(q=Q, r=R)
     python = kfast.NonlinearModel(ungm_f, ungm_h, [[Q]], [[R]], n=1)
     jitted = numba_model()
+    loglik_c = numba_loglik()
     pf = dict(resample="systematic", seed=0)
     steps = N * T
+    stone_soup, stone_soup_version = stonesoup_contender(y, N, steps)
     contenders = [
         Contender("kfast built-in, all cores", lambda: builtin.particle_filter(y, [0.0], [[P0]], N, **pf), steps),
         Contender("kfast built-in, 1 thread", lambda: builtin.particle_filter(y, [0.0], [[P0]], N, threads=1, **pf), steps),
@@ -145,9 +189,17 @@ def main(argv=None):
         Contender("kfast built-in, quantized y (delta 0.5)",
                   lambda: builtin.particle_filter(y_quantized, [0.0], [[P0]], N, likelihood=kfast.Quantized(0.5), **pf), steps),
         Contender("kfast built-in, regularized", lambda: builtin.particle_filter(y, [0.0], [[P0]], N, regularize=True, **pf), steps),
+        Contender("kfast built-in, likelihood a Python function",
+                  lambda: builtin.particle_filter(y, [0.0], [[P0]], N, likelihood=gaussian_loglik, **pf), steps),
+        Contender("kfast built-in, likelihood a numba cfunc",
+                  lambda: builtin.particle_filter(y, [0.0], [[P0]], N, likelihood=loglik_c, **pf), steps),
+        Contender("kfast built-in, r = 10 copies", lambda: builtin.particle_filter(y, [0.0], [[P0]], N, copies=10, **pf), steps),
+        stone_soup,
     ]
     if jitted is None:
         contenders[2].error = "numba not installed"
+    if loglik_c is None:
+        contenders[10].error = "numba not installed"
     peer = run_particles(y, N, rounds)
     run_interleaved([c for c in contenders if c.fn is not None], rounds)
     chopin = Contender("particles (Chopin)", None, steps)
@@ -160,6 +212,8 @@ def main(argv=None):
     print(f"kfast {kfast.__version__}; UNGM, N = {N:,} particles, T = {T}; {rounds} rounds, medians; {cores} cores")
     if not isinstance(peer, str):
         print(f"peers: particles {peer['version']}, numpy (theirs) in their venv")
+    if stone_soup_version:
+        print(f"peers: Stone Soup {stone_soup_version}")
     base = contenders[0]
     print("\n| contender | ns/particle-step | IQR | /kfast built-in |\n|---|---:|---:|---:|")
     for c in contenders:
@@ -182,6 +236,12 @@ def main(argv=None):
     if not isinstance(peer, str):
         d = np.max(np.abs(np.array(peer["mean"]) - reference.x_filt[:, 0]) / sd)
         print(f"  check particles: max|dmean|/sd = {d:.2f}, loglik {peer['loglik']:.3f}")
+    if stone_soup.ok:
+        means, _, loglik = stone_soup.fn()
+        print(f"  check Stone Soup: max|dmean|/sd = {np.max(np.abs(means - reference.x_filt[:, 0]) / sd):.2f}, loglik {loglik:.3f}")
+    if loglik_c is not None:
+        user = builtin.particle_filter(y, [0.0], [[P0]], N, likelihood=loglik_c, **pf)
+        print(f"  check numba likelihood: max|dmean| = {np.max(np.abs(user.x_filt[:, 0] - reference.x_filt[:, 0])):.1e}")
 
 
 if __name__ == "__main__":

@@ -28,8 +28,8 @@ class NoStabilizingSolutionError(KfastError):
 
 # a quantizing sensor: (delta, low, high)
 Quantizer = tuple[NDArray[np.float64], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
-# the particle filter's likelihood: (kind, nu, quantizer)
-LikelihoodSpec = tuple[str, float, Optional[Quantizer]]
+# the particle filter's likelihood: (kind, nu, quantizer or the user's function)
+LikelihoodSpec = tuple[str, float, Optional[Any]]
 PointsSpec = tuple[str, float, float, float, Optional[NDArray[np.float64]], Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
 """kfast.sigma.SigmaPoints._spec(): kind, alpha, beta, kappa and a custom set's unit points, Wm, Wc."""
 
@@ -205,6 +205,8 @@ class NonlinearModel:
         threads: Optional[int] = None,
         likelihood: Optional[LikelihoodSpec] = None,
         regularize: Optional[float] = None,
+        copies: int = 1,
+        rejuvenate: Optional[Any] = None,
     ) -> dict[str, Any]: ...
     def ukf(
         self,
@@ -344,6 +346,8 @@ class ParticleFilter:
         threads: Optional[int] = None,
         likelihood: Optional[LikelihoodSpec] = None,
         regularize: Optional[float] = None,
+        copies: int = 1,
+        rejuvenate: Optional[Any] = None,
     ) -> None: ...
     def update(self, y: NDArray[np.float64], u: Optional[NDArray[np.float64]] = None) -> float: ...
     def predict(self, u: Optional[NDArray[np.float64]] = None) -> bool: ...

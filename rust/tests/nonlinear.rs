@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use kfast::nonlinear::{particle_filter, ParticleOptions, Resampling};
+use kfast::nonlinear::{particle_filter, MeasurementLikelihood, ParticleFunction, ParticleOptions, Resampling};
 use kfast::nonlinear::{ConstantMap, LinearMap};
 use kfast::{
     ekf_batch, ekf_into, filter, ukf_batch, ukf_into, Batch, BatchOutputs, EkfOptions, Error, FilterOutputs,
@@ -276,4 +276,82 @@ fn the_particle_filter_approaches_the_kalman_filter_on_any_number_of_threads() {
     options.particles = 0;
     let err = particle_filter(&nonlinear(), series, None, &X0, &P0, options).unwrap_err();
     assert!(err.to_string().contains("n_particles"), "{err}");
+}
+
+/// log N(y; H x, R) written by the user, on the observed components of y (R diagonal here).
+struct DiagonalGaussian;
+
+impl ParticleFunction for DiagonalGaussian {
+    fn eval(
+        &self,
+        x: &[f64],
+        k: usize,
+        y: &[f64],
+        _t: usize,
+        _u: Option<&[f64]>,
+        out: &mut [f64],
+    ) -> kfast::Result<()> {
+        for (xi, o) in x.chunks_exact(3).zip(&mut out[..k]) {
+            *o = 0.0;
+            for (i, &yi) in y.iter().enumerate().filter(|(_, v)| !v.is_nan()) {
+                let var = R[i * 2 + i];
+                let e = yi - (H[i * 3] * xi[0] + H[i * 3 + 1] * xi[1] + H[i * 3 + 2] * xi[2]);
+                *o -= 0.5 * ((2.0 * std::f64::consts::PI * var).ln() + e * e / var);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Leaves the particles where they are.
+struct Stay;
+
+impl ParticleFunction for Stay {
+    fn eval(
+        &self,
+        x: &[f64],
+        k: usize,
+        _y: &[f64],
+        _t: usize,
+        _u: Option<&[f64]>,
+        out: &mut [f64],
+    ) -> kfast::Result<()> {
+        out[..k * 3].copy_from_slice(&x[..k * 3]);
+        Ok(())
+    }
+}
+
+#[test]
+fn the_users_likelihood_move_and_copies_through_the_public_api() {
+    let y: Vec<f64> = data().iter().map(|v| 0.25 * v).collect();
+    let series = Series::new("y", &y, 30, 2).unwrap();
+    let diagonal = NonlinearModel::new(
+        Arc::new(LinearMap::new(F.to_vec(), 3, 3).unwrap()),
+        Arc::new(LinearMap::new(H.to_vec(), 2, 3).unwrap()),
+        mat(3, 3, &Q),
+        mat(2, 2, &[R[0], 0.0, 0.0, R[3]]),
+        vec![],
+    )
+    .unwrap();
+    let options = ParticleOptions::new(10_000);
+    let gaussian = particle_filter(&diagonal, series, None, &X0, &P0, options.clone()).unwrap();
+    let by_hand =
+        ParticleOptions { likelihood: MeasurementLikelihood::User(Arc::new(DiagonalGaussian)), ..options.clone() };
+    let user = particle_filter(&diagonal, series, None, &X0, &P0, by_hand).unwrap();
+    for (a, b) in user.loglik_t.iter().zip(&gaussian.loglik_t) {
+        assert!((a - b).abs() < 1e-9 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    // a move that stays gives the bits of no move
+    let staying = ParticleOptions { rejuvenate: Some(Arc::new(Stay)), ..options.clone() };
+    assert_eq!(particle_filter(&diagonal, series, None, &X0, &P0, staying).unwrap().x_filt, gaussian.x_filt);
+    // r copies: another filter, still near the first
+    let copies = ParticleOptions { copies: 4, ..options.clone() };
+    let with_copies = particle_filter(&diagonal, series, None, &X0, &P0, copies).unwrap();
+    assert_ne!(with_copies.x_filt, gaussian.x_filt);
+    assert!((with_copies.loglik - gaussian.loglik).abs() < 0.5, "{} vs {}", with_copies.loglik, gaussian.loglik);
+    for bad in [0, 3] {
+        let options = ParticleOptions { copies: bad, ..options.clone() };
+        let err = particle_filter(&diagonal, series, None, &X0, &P0, options).unwrap_err();
+        assert!(err.to_string().starts_with("copies:"), "{err}");
+    }
 }

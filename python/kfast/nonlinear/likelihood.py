@@ -1,18 +1,21 @@
 """The measurement likelihoods p(y | x) of the particle filters (``likelihood=``): the Gaussian
 N(y; h(x), R) by default, or heavy-tailed, uniform or quantized noise. R keeps its place in the
 model: the scale matrix of the Student-t, the variances of the uniform noise, the noise before
-quantization."""
+quantization. Any other p(y | x) is a function ``likelihood(X, y, t, u)`` of all the particles
+(see ``NonlinearModel.particle_filter``)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional, Union
+from typing import Any, Callable, Optional, Union
+
+import numpy as np
 
 from kfast import _kfast
 from kfast.nonlinear.quantized import Quantized
 
-__all__ = ["StudentT", "UniformNoise", "Quantized", "Likelihood"]
+__all__ = ["StudentT", "UniformNoise", "Quantized", "Likelihood", "ParticleMove"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,16 @@ class UniformNoise:
     0. A particle outside the box gets weight 0; if none is inside, the step is an error."""
 
 
-Likelihood = Union[StudentT, UniformNoise, Quantized]
+ParticleFunction = Callable[[np.ndarray, np.ndarray, int, Optional[np.ndarray]], Any]
+"""``fn(X, y, t, u)`` of the particles X (M, n), y(t) (m,), the step and the input row (or None),
+or a compiled function (numba ``@cfunc``, ``scipy.LowLevelCallable``, ctypes) of
+``kfast.nonlinear.model.PARTICLE_C_SIGNATURE``."""
+
+Likelihood = Union[StudentT, UniformNoise, Quantized, ParticleFunction, Any]
+"""A ready likelihood, or the user's ``likelihood(X, y, t, u)`` returning the M log p(y | x_i)."""
+
+ParticleMove = Union[ParticleFunction, Any]
+"""The user's ``move(X, y, t, u)`` returning the M moved particles (M, n)."""
 
 
 def _spec(likelihood: Any, m: int) -> Optional[tuple]:
@@ -54,5 +66,6 @@ def _spec(likelihood: Any, m: int) -> Optional[tuple]:
     if isinstance(likelihood, Quantized):
         return ("quantized", 0.0, likelihood._spec(m))
     raise _kfast.KfastError(
-        f"likelihood: expected None (Gaussian), kfast.StudentT, kfast.UniformNoise or kfast.Quantized, got {type(likelihood).__name__}"
+        "likelihood: expected None (Gaussian), kfast.StudentT, kfast.UniformNoise, kfast.Quantized or a function "
+        f"likelihood(X, y, t, u), got {type(likelihood).__name__}"
     )

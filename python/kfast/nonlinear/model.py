@@ -15,7 +15,7 @@ from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import FilterOutputs, Form, Iteration, Keep, Resample, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
 from kfast.nonlinear.particle import ParticleResult
-from kfast.nonlinear.likelihood import Likelihood, _spec as _likelihood_spec
+from kfast.nonlinear.likelihood import Likelihood, ParticleMove, _spec as _likelihood_spec
 from kfast.sigma import SigmaPoints, merwe
 
 if TYPE_CHECKING:
@@ -361,6 +361,8 @@ class NonlinearModel:
         threads: Optional[int] = None,
         likelihood: Optional[Likelihood] = None,
         regularize: Union[bool, float] = False,
+        copies: int = 1,
+        move: Optional[ParticleMove] = None,
     ) -> ParticleResult:
         """The particle filter: sequential importance resampling with the model as proposal
         (the bootstrap filter of Söderström (9.89)-(9.100)).
@@ -373,7 +375,9 @@ class NonlinearModel:
             x(t|t)   = sum_i W_i x_i,  P(t|t) = sum_i W_i (x_i - x(t|t))(.)'    (9.99)-(9.100)
 
         then the particles are resampled (every step, or when the effective sample size
-        1 / sum W_i^2 falls below ``ess_threshold`` * M) and moved by the model,
+        1 / sum W_i^2 falls below ``ess_threshold`` * M; N = M / ``copies`` ancestors, each
+        taken by ``copies`` particles), optionally moved by ``regularize`` and ``move``, and
+        moved by the model,
         x_i <- f(x_i, t, u) + w_i with w_i ~ N(0, Q) (or g(x_i) w_i, or f(x_i, w_i) with
         ``noise_input``). Angles among the outputs have their residuals wrapped. f and h are
         called once per step for all M particles.
@@ -405,12 +409,17 @@ class NonlinearModel:
             Threads for the particle loops (all cores by default; one for Python callables,
             which hold the GIL). The particles are processed in blocks of a fixed size and the
             blocks' sums added in order, so the result is the same bits for any thread count.
-        likelihood : kfast.StudentT, kfast.UniformNoise or kfast.Quantized, optional
+        likelihood : kfast.StudentT, kfast.UniformNoise, kfast.Quantized or a function, optional
             None: l_i = log N(y(t); h(x_i), R). ``kfast.StudentT(nu)``: multivariate Student-t
             noise of scale R (heavy tails, robust to outliers). ``kfast.UniformNoise()``: noise
             uniform on +-sqrt(3 R_ii) (R diagonal). ``kfast.Quantized(delta, bounds=None)``: y is
             quantized, y = Q_delta(h(x) + v) (Söderström section 9.6), and l_i is the log
             probability of y's cell (R diagonal; see :func:`kfast.quantized_loglik`).
+            A function ``likelihood(X, y, t, u)`` of all the particles X (M, n), y(t) (m,; NaN
+            where missing; not called when nothing is observed), the step and the input row,
+            returning the M log-likelihoods log p(y(t) | x_i) (-inf for an impossible particle;
+            h and R are not used), or a compiled one of ``PARTICLE_C_SIGNATURE`` (numba
+            ``@cfunc``, ``scipy.LowLevelCallable``, ctypes), which runs on all threads.
         regularize : bool or float
             False (the book): resampled copies of a particle stay identical until the process
             noise moves them. True, or a factor c > 0: after each resampling every particle moves
@@ -418,6 +427,18 @@ class NonlinearModel:
             h = c (4 / (M (n + 2)))^(1/(n + 4)) (c = 1 for True): the regularized particle filter,
             for small process noise where the copies would otherwise collapse. It widens the
             filtered density by h^2 P(t|t) at each resampling.
+        copies : int
+            r of the book's filter (Söderström (9.98)): resampling draws N = M / r ancestors and
+            each is propagated r times (r particles with independent process noise); M must be
+            a multiple of r. 1 (the default) is the standard bootstrap filter.
+        move : function, optional
+            A move after each resampling (after ``regularize``): ``move(X, y, t, u)`` returns the
+            moved particles (M, n), given y(t) of the update just made (all NaN if none). The
+            resample-move filter (Gilks & Berzuini 2001): a Metropolis-Hastings step whose
+            target is p(x(t) | y(0..t)) -- e.g. proposing x_i + s z_i, accepting by the ratio of
+            p(y(t) | x) p(x) -- keeps the filter exact and restores the particles' diversity. Its
+            own random numbers are the user's to seed. A compiled one (``PARTICLE_C_SIGNATURE``,
+            out the k x n moved particles) is called per block of particles on all threads.
 
         Returns
         -------
@@ -431,7 +452,9 @@ class NonlinearModel:
             Bad arguments; f, h or g returning a non-finite value (naming it and the step); no
             particle explaining y(t) (every likelihood 0: more particles or a wider R).
         """
-        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self.n_obs, regularize)
+        options = _particle_options(
+            n_particles, resample, ess_threshold, seed, threads, likelihood, self.n_obs, regularize, copies, move
+        )
         if keep is not None:
             keep = cast(Keep, choice("keep", keep, ("last", "all")))
         args = self._data(y, x0, P0, u)
@@ -481,6 +504,16 @@ C_SIGNATURE = "void (const double *X, intptr_t k, intptr_t n, int64_t t, const d
 """The C signature of a compiled f or h: the k points X (k x n, row-major), the step t, the input
 row u (NULL without inputs, else the model's input width) and the k x m results in out."""
 
+PARTICLE_C_SIGNATURE = (
+    "void (const double *X, intptr_t k, intptr_t n, const double *y, intptr_t m, int64_t t, const double *u, double *out)"
+)
+"""The C signature of a compiled likelihood or move of the particle filter: C_SIGNATURE with
+y(t) (m numbers, NaN where missing) after the particles X; out holds k log-likelihoods, or the
+k x n moved particles."""
+
+# the argument kinds of the two signatures: "p" a double pointer, "i" a 64-bit integer
+_ARG_KINDS = {C_SIGNATURE: "piiipp", PARTICLE_C_SIGNATURE: "piipiipp"}
+
 
 def _particle_options(
     n_particles: object,
@@ -491,17 +524,33 @@ def _particle_options(
     likelihood: object,
     m: int,
     regularize: object,
+    copies: object,
+    move: object,
 ) -> dict[str, Any]:
     """The particle filters' options, checked (as keyword arguments of the compiled calls)."""
+    n_particles = index("n_particles", n_particles)
+    copies = index("copies", copies)
+    if copies < 1 or n_particles % copies:
+        raise _kfast.KfastError(f"copies: must be at least 1 and divide n_particles = {n_particles}, got {copies}")
     return {
         "regularize": _bandwidth(regularize),
-        "likelihood": _likelihood_spec(likelihood, m),
-        "n_particles": index("n_particles", n_particles),
+        "likelihood": _user_likelihood(likelihood, m),
+        "rejuvenate": None if move is None else _callable("move", move, "a callable move(X, y, t, u)", PARTICLE_C_SIGNATURE),
+        "copies": copies,
+        "n_particles": n_particles,
         "resample": choice("resample", resample, ("multinomial", "systematic", "stratified", "residual")),
         "ess_threshold": None if ess_threshold is None else _fraction("ess_threshold", ess_threshold),
         "seed": _seed(seed),
         "threads": None if threads is None else index("threads", threads),
     }
+
+
+def _user_likelihood(likelihood: Any, m: int) -> Optional[tuple]:
+    """``likelihood`` as the compiled calls take it: a ready one's spec, or ("user", 0, the
+    callable or ("cfunc", address)) for the user's log p(y | x)."""
+    if callable(likelihood) or _is_compiled(likelihood):
+        return ("user", 0.0, _callable("likelihood", likelihood, "a callable", PARTICLE_C_SIGNATURE))
+    return _likelihood_spec(likelihood, m)
 
 
 def _bandwidth(value: object) -> Optional[float]:
@@ -558,10 +607,10 @@ def _spec(name: str, fn: Any) -> Any:
     return _callable(name, fn, f"a callable {name}(X, t, u) or a kfast.models built-in")
 
 
-def _callable(name: str, fn: Any, expected: str) -> Any:
-    """A compiled function as ("cfunc", address) (its signature checked), a Python callable as
-    it is."""
-    address = _compiled_address(name, fn)
+def _callable(name: str, fn: Any, expected: str, signature: str = C_SIGNATURE) -> Any:
+    """A compiled function as ("cfunc", address) (its signature checked against
+    ``signature``), a Python callable as it is."""
+    address = _compiled_address(name, fn, signature)
     if address is not None:
         return ("cfunc", address)
     if not callable(fn):
@@ -625,16 +674,18 @@ def _angles(angles: Sequence[int], m: int) -> tuple[int, ...]:
     return tuple(out)
 
 
-def _compiled_address(name: str, fn: Any) -> Optional[int]:
-    """The address of a compiled f or h -- a numba ``@cfunc``, a ``scipy.LowLevelCallable`` or a
-    ctypes function pointer -- after checking its declared signature against C_SIGNATURE; None
-    for anything else (a Python callable)."""
+def _compiled_address(name: str, fn: Any, signature: str = C_SIGNATURE) -> Optional[int]:
+    """The address of a compiled function -- a numba ``@cfunc``, a ``scipy.LowLevelCallable`` or
+    a ctypes function pointer -- after checking its declared signature against ``signature``
+    (C_SIGNATURE or PARTICLE_C_SIGNATURE); None for anything else (a Python callable)."""
     import ctypes
 
+    kinds = _ARG_KINDS[signature]
     if type(fn).__name__ == "LowLevelCallable" and hasattr(fn, "signature"):
         sig = " ".join(str(fn.signature).replace("const ", "").split())
-        if not re.fullmatch(rf"void \(double \*, {_INT64}, {_INT64}, {_INT64}, double \*, double \*\)", sig):
-            raise _kfast.KfastError(f"{name}: the LowLevelCallable's signature {fn.signature!r} is not {C_SIGNATURE!r}")
+        pattern = ", ".join(r"double \*" if k == "p" else _INT64 for k in kinds)
+        if not re.fullmatch(rf"void \({pattern}\)", sig):
+            raise _kfast.KfastError(f"{name}: the LowLevelCallable's signature {fn.signature!r} is not {signature!r}")
         get_name = ctypes.pythonapi.PyCapsule_GetName
         get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
         get_pointer = ctypes.pythonapi.PyCapsule_GetPointer
@@ -652,13 +703,12 @@ def _compiled_address(name: str, fn: Any) -> Optional[int]:
 
     ok = (
         cfn.restype is None
-        and len(args) == 6
-        and all(args[i] is double_p for i in (0, 4, 5))
-        and all(int64(args[i]) for i in (1, 2, 3))
+        and len(args) == len(kinds)
+        and all(arg is double_p if kind == "p" else int64(arg) for arg, kind in zip(args, kinds))
     )
     if not ok:
         got = ", ".join(getattr(a, "__name__", str(a)) for a in args)
-        raise _kfast.KfastError(f"{name}: the compiled function's signature ({got}) -> {cfn.restype} is not {C_SIGNATURE!r}")
+        raise _kfast.KfastError(f"{name}: the compiled function's signature ({got}) -> {cfn.restype} is not {signature!r}")
     return int(ctypes.cast(cfn, ctypes.c_void_p).value or 0)
 
 

@@ -13,7 +13,7 @@ from kfast._args import choice, index
 from kfast._arrays import as_float64
 from kfast._typing import Form, Iteration, Resample, UkfForm
 from kfast.nonlinear.model import BuiltinFunction, NonlinearModel, _angles, _particle_options, _spec
-from kfast.nonlinear.likelihood import Likelihood
+from kfast.nonlinear.likelihood import Likelihood, ParticleMove
 from kfast.sigma import SigmaPoints, merwe
 
 __all__ = ["ExtendedKalmanFilter", "UnscentedKalmanFilter", "ParticleFilter"]
@@ -176,9 +176,13 @@ class ParticleFilter(_State):
         threads: Optional[int] = None,
         likelihood: Optional[Likelihood] = None,
         regularize: Union[bool, float] = False,
+        copies: int = 1,
+        move: Optional[ParticleMove] = None,
     ) -> None:
         self._model = _model(model)
-        options = _particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, self._model.n_obs, regularize)
+        options = _particle_options(
+            n_particles, resample, ess_threshold, seed, threads, likelihood, self._model.n_obs, regularize, copies, move
+        )
         self._n_particles: int = options["n_particles"]
         x, P = model._prior(x0, P0)
         self._core = _kfast.ParticleFilter(model._core, x, P, **options)

@@ -111,11 +111,12 @@ def _ordered_uniforms(stream, m):
     return s[:-1] / s[-1]
 
 
-def resample(scheme, w, stream):
-    """Ancestor indices, particle i copied M w_i / sum(w) times in expectation (Söderström
-    (9.95)-(9.97) for "multinomial"; Kitagawa 1996; Liu & Chen 1998 for "residual")."""
+def resample(scheme, w, stream, draws=None):
+    """``draws`` (N; M by default) ancestor indices, particle i chosen N w_i / sum(w) times in
+    expectation (Söderström (9.95)-(9.97) for "multinomial"; Kitagawa 1996; Liu & Chen 1998 for
+    "residual")."""
     w = np.asarray(w, dtype=float)
-    m = len(w)
+    m = len(w) if draws is None else draws
     if scheme == "multinomial":
         return _inverse_cdf(w, _ordered_uniforms(stream, m))
     if scheme == "systematic":
@@ -125,7 +126,7 @@ def resample(scheme, w, stream):
     if scheme == "residual":
         scaled = w * (m / w.sum())
         copies = np.floor(scaled).astype(int)
-        sure = np.repeat(np.arange(m), copies)[:m]
+        sure = np.repeat(np.arange(len(w)), copies)[:m]
         rest = m - len(sure)
         if rest == 0:
             return sure
@@ -138,7 +139,7 @@ def resample(scheme, w, stream):
 
 def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multinomial", ess_threshold=None,
                     seed=0, u=None, angles=(), g=None, noise_input=False, quantized=None, student_t=None,
-                    uniform=False, regularize=None):
+                    uniform=False, regularize=None, likelihood=None, copies=1, move=None):
     """The SIR particle filter with the model as proposal; x(0|-1) ~ N(x0, P0).
 
     f, h batched as kfast's (``f(X, t, u)``, or ``f(X, W, t, u)`` with ``noise_input``; ``g``
@@ -147,13 +148,16 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
     diagonal). ``student_t``: the degrees of freedom nu of multivariate Student-t noise of scale
     R. ``uniform``: noise uniform on +-sqrt(3 R_ii). Returns a dict of x_filt, P_filt, ess,
     resampled, loglik_t and loglik. ``regularize`` c: after each resampling x_i += h L z_i,
-    L L' = P(t|t), h = c (4 / (M (n + 2)))^(1/(n + 4)).
+    L L' = P(t|t), h = c (4 / (M (n + 2)))^(1/(n + 4)). ``likelihood(X, y, t, u)``: the user's
+    log p(y(t) | x) of all particles. ``copies`` r: resampling draws M / r ancestors, each taken
+    by r particles in a row (Söderström (9.98)). ``move(X, y, t, u)``: the user's move after
+    each resampling (and regularization), y the last update's (NaN if none).
     """
     y = np.asarray(y, dtype=float)
     y = y[:, None] if y.ndim == 1 else y
     T, m = y.shape
     n, M = len(x0), n_particles
-    Qs, Rs = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
+    Qs = np.asarray(Q, dtype=float)
     # the prior's particles
     L0 = psd_cholesky(P0)
     Z = Stream(seed, 0, PRIOR).normal(np.arange(M * n)).reshape(M, n)
@@ -166,26 +170,8 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
         obs = ~np.isnan(y[t])
         increment = 0.0
         if obs.any():
-            R_t = Rs[t] if Rs.ndim == 3 else Rs
-            Ro = R_t[np.ix_(obs, obs)]
-            Y_hat = np.asarray(h(X, t, u_t), dtype=float)
-            E = y[t][obs] - Y_hat[:, obs]
-            for j, i in enumerate(np.flatnonzero(obs)):
-                if i in angles:
-                    E[:, j] = wrap(E[:, j])
-            maha = np.einsum("ij,ij->i", E, np.linalg.solve(Ro, E.T).T)
-            mo, logdet = obs.sum(), np.linalg.slogdet(Ro)[1]
-            if quantized is not None:
-                loglik_i = quantized_loglik(y[t], Y_hat, np.sqrt(np.diag(R_t)), np.broadcast_to(quantized, (m,)))
-            elif student_t is not None:
-                nu = student_t
-                loglik_i = (math.lgamma((nu + mo) / 2) - math.lgamma(nu / 2) - mo / 2 * np.log(nu * np.pi) - logdet / 2
-                            - (nu + mo) / 2 * np.log1p(maha / nu))
-            elif uniform:
-                half = np.sqrt(3 * np.diag(Ro))
-                loglik_i = np.where(np.all(np.abs(E) <= half, axis=1), -np.sum(np.log(2 * half)), -np.inf)
-            else:
-                loglik_i = -0.5 * (mo * np.log(2 * np.pi) + logdet + maha)
+            loglik_i = (_log_likelihoods(h, R, y[t], X, t, u_t, angles, quantized, student_t, uniform) if likelihood is None
+                        else np.asarray(likelihood(X, y[t], t, u_t), dtype=float))
             a = log_w + loglik_i
             top = a.max()
             increment = top + np.log(np.sum(np.exp(a - top)))
@@ -206,12 +192,15 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
         due = ess_threshold is None or ess < ess_threshold * M
         out["resampled"].append(due)
         if due:
-            X = X[resample(resample_scheme, W, Stream(seed, t, RESAMPLING))]
+            ancestors = resample(resample_scheme, W, Stream(seed, t, RESAMPLING), M // copies)
+            X = X[np.repeat(ancestors, copies)]
             log_w = np.full(M, -np.log(M))
             if regularize is not None:
                 h_bw = regularize * (4.0 / (M * (n + 2))) ** (1.0 / (n + 4))
                 Z = Stream(seed, t, REGULARIZATION).normal(np.arange(M * n)).reshape(M, n)
                 X = X + h_bw * Z @ psd_cholesky(out["P_filt"][-1]).T
+            if move is not None:
+                X = np.asarray(move(X, y[t], t, u_t), dtype=float)
         # the time update (9.98): x <- f(x) + w, w ~ N(0, Q(t))
         Q_t = Qs[t] if Qs.ndim == 3 else Qs
         r = len(Q_t)
@@ -226,3 +215,32 @@ def particle_filter(f, h, Q, R, y, x0, P0, n_particles, resample_scheme="multino
     res = {k: np.array(v) for k, v in out.items()}
     res["loglik"] = float(np.sum(res["loglik_t"]))
     return res
+
+
+def _log_likelihoods(h, R, y_t, X, t, u_t, angles, quantized, student_t, uniform):
+    """log p(y(t) | x_i) of the particles X on y's observed components: Gaussian, quantized,
+    Student-t or uniform noise."""
+    obs = ~np.isnan(y_t)
+    m = len(y_t)
+    Rs = np.asarray(R, dtype=float)
+    R_t = Rs[t] if Rs.ndim == 3 else Rs
+    Ro = R_t[np.ix_(obs, obs)]
+    Y_hat = np.asarray(h(X, t, u_t), dtype=float)
+    E = y_t[obs] - Y_hat[:, obs]
+    for j, i in enumerate(np.flatnonzero(obs)):
+        if i in angles:
+            E[:, j] = wrap(E[:, j])
+    maha = np.einsum("ij,ij->i", E, np.linalg.solve(Ro, E.T).T)
+    mo, logdet = obs.sum(), np.linalg.slogdet(Ro)[1]
+    if quantized is not None:
+        loglik_i = quantized_loglik(y_t, Y_hat, np.sqrt(np.diag(R_t)), np.broadcast_to(quantized, (m,)))
+    elif student_t is not None:
+        nu = student_t
+        loglik_i = (math.lgamma((nu + mo) / 2) - math.lgamma(nu / 2) - mo / 2 * np.log(nu * np.pi) - logdet / 2
+                    - (nu + mo) / 2 * np.log1p(maha / nu))
+    elif uniform:
+        half = np.sqrt(3 * np.diag(Ro))
+        loglik_i = np.where(np.all(np.abs(E) <= half, axis=1), -np.sum(np.log(2 * half)), -np.inf)
+    else:
+        loglik_i = -0.5 * (mo * np.log(2 * np.pi) + logdet + maha)
+    return loglik_i

@@ -38,8 +38,8 @@ pub use function::{wrap_angle, ConstantMap, LinearMap, PointFunction};
 pub use median::{mean_filter, median_filter, StartUp};
 pub use model::NonlinearModel;
 pub use particle::{
-    particle_filter, particle_filter_into, MeasurementLikelihood, ParticleFilter, ParticleOptions, ParticleOutputs,
-    ParticleResult, Resampling,
+    particle_filter, particle_filter_into, MeasurementLikelihood, ParticleFilter, ParticleFunction, ParticleOptions,
+    ParticleOutputs, ParticleResult, Resampling,
 };
 pub use quantized::{
     log_normal_cdf, log_normal_interval, quantize, quantize_into, quantized_loglik, quantized_moments, Distribution,

@@ -26,13 +26,20 @@ type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 /// its signature checked in Python before its address gets here), called directly.
 enum Callee {
     Python(Py<PyAny>),
-    C(CFn),
+    /// The address of a compiled function, of the signature [`CFn`] (f, h, g and their
+    /// derivatives) or [`ParticleCFn`] (a particle filter's likelihood or move).
+    C(usize),
 }
 
 /// The C signature of a compiled function: `void f(const double *X, intptr_t k, intptr_t n,
 /// int64_t t, const double *u, double *out)` — the k points X (k × n, row-major), the step t,
 /// the input row u (NULL without inputs) and the k results (k × the numbers per point).
 type CFn = unsafe extern "C" fn(*const f64, isize, isize, i64, *const f64, *mut f64);
+
+/// The C signature of a compiled likelihood or move of the particle filter: `void f(const
+/// double *X, intptr_t k, intptr_t n, const double *y, intptr_t m, int64_t t, const double *u,
+/// double *out)` — [`CFn`] with y(t) (m numbers, NaN where missing) after the points.
+type ParticleCFn = unsafe extern "C" fn(*const f64, isize, isize, *const f64, isize, i64, *const f64, *mut f64);
 
 impl Callee {
     /// `callable` from Python: a function, or `("cfunc", address)` for a compiled one.
@@ -42,9 +49,9 @@ impl Callee {
             if kind != "cfunc" || address == 0 {
                 return Err(KfastError::new_err(format!("{name}: expected a callable or a compiled function")));
             }
-            // SAFETY: a non-null address of a function of the signature CFn (checked in
-            // Python, kfast.nonlinear.model._compiled_address).
-            return Ok(Callee::C(unsafe { std::mem::transmute::<usize, CFn>(address) }));
+            // a non-null address of a function whose signature was checked in Python
+            // (kfast.nonlinear.model._compiled_address)
+            return Ok(Callee::C(address));
         }
         if !callable.is_callable() {
             return Err(KfastError::new_err(format!("{name}: expected a callable {name}(X, t, u)")));
@@ -83,58 +90,130 @@ impl UserFunction {
         let fail = |problem: String| Error::arg_at(self.name, t, problem);
         let points = &points[..k * self.dim_in];
         let callable = match callee {
-            Callee::C(fun) => {
-                let (k_c, n_c) = (isize::try_from(k), isize::try_from(self.dim_in));
-                let (Ok(k_c), Ok(n_c), Ok(t_c)) = (k_c, n_c, i64::try_from(t)) else {
-                    return Err(fail("too many points for a C call".into()));
-                };
+            Callee::C(address) => {
+                let (k_c, n_c, t_c) =
+                    c_sizes(k, self.dim_in, t).ok_or_else(|| fail("too many points for a C call".into()))?;
                 let out = &mut out[..k * shape_tail.iter().product::<usize>()];
                 let u = u.map_or(std::ptr::null(), |u| u.as_ptr());
-                // SAFETY: the caller of `kfast.NonlinearModel` vouched for the address (its
-                // signature was checked in Python); the buffers have the sizes it promises.
-                unsafe { fun(points.as_ptr(), k_c, n_c, t_c, u, out.as_mut_ptr()) };
+                // SAFETY: the caller of `kfast.NonlinearModel` vouched for the address, a
+                // function of the signature CFn (checked in Python); the buffers have the sizes
+                // it promises.
+                unsafe {
+                    let fun = std::mem::transmute::<usize, CFn>(*address);
+                    fun(points.as_ptr(), k_c, n_c, t_c, u, out.as_mut_ptr())
+                };
                 return Ok(());
             }
             Callee::Python(callable) => callable,
         };
         Python::attach(|py| {
-            let x = Array2::from_shape_vec((k, self.dim_in), points.to_vec())
-                .map_err(|e| fail(e.to_string()))?
-                .into_pyarray(py);
+            let x = points_array(py, points, k, self.dim_in).map_err(fail)?;
             let u = u.map(|u| numpy::PyArray1::from_slice(py, u));
-            let result =
-                callable.bind(py).call1((x, t, u)).map_err(|e| fail(format!("{what} raised {}", describe(py, &e))))?;
-            // a float64 array as it is (the usual case: no call into NumPy), anything else
-            // through numpy.asarray
-            let arr = match result.cast_into::<PyArrayDyn<f64>>() {
-                Ok(arr) => arr,
-                Err(other) => py
-                    .import("numpy")
-                    .and_then(|np| np.getattr("asarray")?.call1((other.into_inner(), "float64")))
-                    .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?))
-                    .map_err(|e| fail(format!("{what} did not return an array of numbers ({})", describe(py, &e))))?,
-            };
-            let mut want = vec![k];
-            want.extend_from_slice(shape_tail);
-            if arr.shape() != want.as_slice() {
-                return Err(fail(format!(
-                    "{what} returned shape {} for points X of shape ({k}, {}), expected {}",
-                    tuple(arr.shape()),
-                    self.dim_in,
-                    tuple(&want)
-                )));
-            }
-            let arr = arr.readonly();
-            match arr.as_slice() {
-                Ok(values) => out[..values.len()].copy_from_slice(values),
-                Err(_) => {
-                    for (o, v) in out.iter_mut().zip(arr.as_array().iter()) {
-                        *o = *v;
-                    }
-                }
-            }
-            Ok(())
+            let result = callable.bind(py).call1((x, t, u));
+            copy_result(py, result, what, (k, self.dim_in), shape_tail, out).map_err(fail)
         })
+    }
+}
+
+/// k, n and t as a C call takes them (None if they do not fit).
+fn c_sizes(k: usize, n: usize, t: usize) -> Option<(isize, isize, i64)> {
+    Some((isize::try_from(k).ok()?, isize::try_from(n).ok()?, i64::try_from(t).ok()?))
+}
+
+/// The k points (k × n) as a NumPy array.
+fn points_array<'py>(
+    py: Python<'py>,
+    points: &[f64],
+    k: usize,
+    n: usize,
+) -> std::result::Result<Bound<'py, PyAny>, String> {
+    Ok(Array2::from_shape_vec((k, n), points.to_vec()).map_err(|e| e.to_string())?.into_pyarray(py).into_any())
+}
+
+/// The `result` of a Python callable (`what`) at points of shape `points` (k, n), which must
+/// have the shape (k, *`shape_tail`), into `out`; else what is wrong with it.
+fn copy_result(
+    py: Python<'_>,
+    result: PyResult<Bound<'_, PyAny>>,
+    what: &str,
+    (k, n): (usize, usize),
+    shape_tail: &[usize],
+    out: &mut [f64],
+) -> std::result::Result<(), String> {
+    let result = result.map_err(|e| format!("{what} raised {}", describe(py, &e)))?;
+    // a float64 array as it is (the usual case: no call into NumPy), anything else through
+    // numpy.asarray
+    let arr = match result.cast_into::<PyArrayDyn<f64>>() {
+        Ok(arr) => arr,
+        Err(other) => py
+            .import("numpy")
+            .and_then(|np| np.getattr("asarray")?.call1((other.into_inner(), "float64")))
+            .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?))
+            .map_err(|e| format!("{what} did not return an array of numbers ({})", describe(py, &e)))?,
+    };
+    let mut want = vec![k];
+    want.extend_from_slice(shape_tail);
+    if arr.shape() != want.as_slice() {
+        return Err(format!(
+            "{what} returned shape {} for points X of shape ({k}, {n}), expected {}",
+            tuple(arr.shape()),
+            tuple(&want)
+        ));
+    }
+    let arr = arr.readonly();
+    match arr.as_slice() {
+        Ok(values) => out[..values.len()].copy_from_slice(values),
+        Err(_) => {
+            for (o, v) in out.iter_mut().zip(arr.as_array().iter()) {
+                *o = *v;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The particle filter's likelihood (`shape` []: log p(y(t) | x) per particle) or move
+/// (`shape` [n]: the moved particle) given by the user: `fn(X, y, t, u)` or a compiled
+/// function of the signature [`ParticleCFn`].
+struct UserParticleFunction {
+    name: &'static str,
+    fun: Callee,
+    n: usize,
+    /// The shape of one particle's result.
+    shape: Vec<usize>,
+}
+
+impl nonlinear::ParticleFunction for UserParticleFunction {
+    fn eval(&self, particles: &[f64], k: usize, y: &[f64], t: usize, u: Option<&[f64]>, out: &mut [f64]) -> Result<()> {
+        let fail = |problem: String| Error::arg_at(self.name, t, problem);
+        let points = &particles[..k * self.n];
+        let out = &mut out[..k * self.shape.iter().product::<usize>()];
+        let callable = match &self.fun {
+            Callee::C(address) => {
+                let (k_c, n_c, t_c) =
+                    c_sizes(k, self.n, t).ok_or_else(|| fail("too many particles for a C call".into()))?;
+                let m_c = isize::try_from(y.len()).map_err(|_| fail("too many outputs for a C call".into()))?;
+                let u = u.map_or(std::ptr::null(), |u| u.as_ptr());
+                // SAFETY: the address is a function of the signature ParticleCFn (checked in
+                // Python); the buffers have the sizes it promises.
+                unsafe {
+                    let fun = std::mem::transmute::<usize, ParticleCFn>(*address);
+                    fun(points.as_ptr(), k_c, n_c, y.as_ptr(), m_c, t_c, u, out.as_mut_ptr())
+                };
+                return Ok(());
+            }
+            Callee::Python(callable) => callable,
+        };
+        Python::attach(|py| {
+            let x = points_array(py, points, k, self.n).map_err(fail)?;
+            let (y, u) = (numpy::PyArray1::from_slice(py, y), u.map(|u| numpy::PyArray1::from_slice(py, u)));
+            let result = callable.bind(py).call1((x, y, t, u));
+            copy_result(py, result, "it", (k, self.n), &self.shape, out).map_err(fail)
+        })
+    }
+
+    fn parallel(&self) -> bool {
+        matches!(self.fun, Callee::C(_))
     }
 }
 
@@ -459,7 +538,7 @@ impl PyNonlinearModel {
 
     /// The particle filter: a dict with x_filt (T, n), P_filt (T, n, n), ess (T,), resampled
     /// (T,) bool, loglik_t (T,), loglik and, with `keep` "last" or "all", particles and log_weights.
-    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, likelihood=None, regularize=None))]
+    #[pyo3(signature = (y, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, keep=None, u=None, threads=None, likelihood=None, regularize=None, copies=1, rejuvenate=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
     fn particle_filter<'py>(
@@ -469,7 +548,7 @@ impl PyNonlinearModel {
         x0: Array<'py>,
         P0: Array<'py>,
         n_particles: usize,
-        resample: &str,
+        resample: &'py str,
         ess_threshold: Option<f64>,
         seed: u64,
         keep: Option<&str>,
@@ -477,8 +556,21 @@ impl PyNonlinearModel {
         threads: Option<usize>,
         likelihood: Option<LikelihoodSpec<'py>>,
         regularize: Option<f64>,
+        copies: usize,
+        rejuvenate: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, regularize)?;
+        let args = ParticleArgs {
+            particles: n_particles,
+            copies,
+            resample,
+            ess_threshold,
+            seed,
+            threads,
+            likelihood,
+            regularize,
+            rejuvenate,
+        };
+        let options = particle_options(args, self.inner.n_states())?;
         let (y, u) = series(&y, u.as_ref())?;
         let (x0, p0) = prior(&x0, &P0, self.inner.n_states())?;
         let (n, steps) = (self.inner.n_states(), y.steps());
@@ -734,24 +826,37 @@ pub(super) struct PyParticleFilter {
 #[pymethods]
 impl PyParticleFilter {
     #[new]
-    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, likelihood=None, regularize=None))]
+    #[pyo3(signature = (model, x0, P0, n_particles, resample="multinomial", ess_threshold=None, seed=0, threads=None, likelihood=None, regularize=None, copies=1, rejuvenate=None))]
     #[allow(non_snake_case)]
     #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
+    fn new<'py>(
+        py: Python<'py>,
         model: &PyNonlinearModel,
-        x0: Array<'_>,
-        P0: Array<'_>,
+        x0: Array<'py>,
+        P0: Array<'py>,
         n_particles: usize,
-        resample: &str,
+        resample: &'py str,
         ess_threshold: Option<f64>,
         seed: u64,
         threads: Option<usize>,
-        likelihood: Option<LikelihoodSpec<'_>>,
+        likelihood: Option<LikelihoodSpec<'py>>,
         regularize: Option<f64>,
+        copies: usize,
+        rejuvenate: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Self> {
         let (x0, p0) = prior(&x0, &P0, model.inner.n_states())?;
-        let options = particle_options(n_particles, resample, ess_threshold, seed, threads, likelihood, regularize)?;
+        let args = ParticleArgs {
+            particles: n_particles,
+            copies,
+            resample,
+            ess_threshold,
+            seed,
+            threads,
+            likelihood,
+            regularize,
+            rejuvenate,
+        };
+        let options = particle_options(args, model.inner.n_states())?;
         let shared = Arc::clone(&model.shared);
         let inner = py.detach(|| nonlinear::ParticleFilter::new(shared, x0, p0, options))?;
         Ok(PyParticleFilter { inner })
@@ -817,35 +922,60 @@ impl PyParticleFilter {
 
 /// A quantizing sensor from Python: (delta, low, high), the bounds optional.
 type Quantizer<'py> = (Array<'py>, Option<Array<'py>>, Option<Array<'py>>);
-/// The particle filter's likelihood from Python: ("student_t", ν, None), ("uniform", 0, None)
-/// or ("quantized", 0, quantizer); None is the Gaussian.
-type LikelihoodSpec<'py> = (String, f64, Option<Quantizer<'py>>);
+/// The particle filter's likelihood from Python: ("student_t", ν, None), ("uniform", 0, None),
+/// ("quantized", 0, quantizer) or ("user", 0, callable or ("cfunc", address)); None is the
+/// Gaussian.
+type LikelihoodSpec<'py> = (String, f64, Option<Bound<'py, PyAny>>);
 
-/// The particle filter's options from Python's arguments.
-fn particle_options(
+/// The particle filter's settings from Python, as its methods take them.
+struct ParticleArgs<'py> {
     particles: usize,
-    resample: &str,
+    copies: usize,
+    resample: &'py str,
     ess_threshold: Option<f64>,
     seed: u64,
     threads: Option<usize>,
-    likelihood: Option<LikelihoodSpec<'_>>,
+    likelihood: Option<LikelihoodSpec<'py>>,
     regularize: Option<f64>,
-) -> PyResult<nonlinear::ParticleOptions> {
+    rejuvenate: Option<Bound<'py, PyAny>>,
+}
+
+/// The particle filter's options from Python's arguments, for a model of n states.
+fn particle_options(args: ParticleArgs<'_>, n: usize) -> PyResult<nonlinear::ParticleOptions> {
     use nonlinear::MeasurementLikelihood as Kind;
-    let resampling = nonlinear::Resampling::from_name(resample)?;
-    let likelihood = match likelihood {
+    let resampling = nonlinear::Resampling::from_name(args.resample)?;
+    let user = |name: &'static str, spec: &Bound<'_, PyAny>, shape: Vec<usize>| -> PyResult<_> {
+        Ok(Arc::new(UserParticleFunction { name, fun: Callee::of(name, spec)?, n, shape }))
+    };
+    let likelihood = match args.likelihood {
         None => Kind::Gaussian,
-        Some((kind, nu, quantizer)) => match (kind.as_str(), quantizer) {
+        Some((kind, nu, extra)) => match (kind.as_str(), extra) {
             ("student_t", _) => Kind::StudentT { nu },
             ("uniform", _) => Kind::Uniform,
-            ("quantized", Some((delta, low, high))) => {
+            ("quantized", Some(quantizer)) => {
+                let (delta, low, high): Quantizer<'_> = quantizer.extract()?;
                 let delta = delta.as_slice().map_err(|_| KfastError::new_err("likelihood: delta is not contiguous"))?;
                 Kind::Quantized(quantized_sensor(delta, low.as_ref(), high.as_ref())?)
             }
+            ("user", Some(fun)) => Kind::User(user("likelihood", &fun, vec![])?),
             (other, _) => return Err(KfastError::new_err(format!("likelihood: unknown kind {other:?}"))),
         },
     };
-    Ok(nonlinear::ParticleOptions { particles, resampling, ess_threshold, seed, threads, likelihood, regularize })
+    let rejuvenate: Option<Arc<dyn nonlinear::ParticleFunction>> = match &args.rejuvenate {
+        None => None,
+        Some(spec) => Some(user("move", spec, vec![n])?),
+    };
+    Ok(nonlinear::ParticleOptions {
+        particles: args.particles,
+        copies: args.copies,
+        resampling,
+        ess_threshold: args.ess_threshold,
+        seed: args.seed,
+        threads: args.threads,
+        likelihood,
+        regularize: args.regularize,
+        rejuvenate,
+    })
 }
 
 /// The causal running median of window `n` of each column of `u` (T, k); `mode` "valid" or

@@ -4,6 +4,7 @@
 //! the thread count. f and h are called once per block — or once for all particles when they
 //! are Python callables, which hold the GIL (then everything runs on one thread).
 
+use super::custom::ParticleFunction;
 use super::exp::exp_nonpositive;
 use super::filter::{MeasurementLikelihood, ParticleOptions};
 use super::random::{NormalScratch, Purpose, Stream};
@@ -29,8 +30,10 @@ pub(crate) struct Cloud {
     m: usize,
     /// The size r of the process noise w.
     r: usize,
-    /// f, h and g called per block (else once for all particles).
+    /// f, h, g and the user's functions called per block (else once for all particles).
     per_block: bool,
+    /// y(t) of the last update (NaN after the time update), for the user's move.
+    y_t: Vec<f64>,
     /// xⁱ (M × n).
     x: Vec<f64>,
     /// f(xⁱ), then x(t+1)ⁱ; the resampled particles; the prior's draws (M × n).
@@ -83,12 +86,14 @@ impl Cloud {
             [&[count, n], &[count, n], &[count, m], &[count, 2 * r], &[count, work], &[count, 4]];
         check_f64_arrays("n_particles", &[&per_particle[..], &[&[blocks, n * n + n + 2]]].concat())?;
         let likelihood = Likelihood::new(m, &options.likelihood)?;
+        let per_block = model.parallel() && options.parallel();
         Ok(Cloud {
             options,
             n,
             m,
             r,
-            per_block: model.parallel(),
+            per_block,
+            y_t: vec![f64::NAN; m],
             x: vec![0.0; count * n],
             next: vec![0.0; count * n],
             log_w: vec![-(count as f64).ln(); count],
@@ -107,6 +112,11 @@ impl Cloud {
             ancestors: vec![0; count],
             resampling: Scratch::default(),
         })
+    }
+
+    /// Whether the model and the user's functions may run on several threads.
+    pub(crate) fn parallel(&self) -> bool {
+        self.per_block
     }
 
     /// The number of blocks of particles (the most threads that can share the work).
@@ -150,13 +160,27 @@ impl Cloud {
     /// Weights the particles by p(y(t) | xⁱ); returns loglik_t (0 when nothing is observed).
     pub(crate) fn update(&mut self, model: &NonlinearModel, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<f64> {
         let sensor = model.sensor(t);
+        self.y_t.copy_from_slice(y);
         if !self.likelihood.prepare(sensor, y, t)? {
             return Ok(0.0);
         }
         let (n, m) = (self.n, self.m);
         let h = sensor.h;
+        let user = match &self.likelihood.kind {
+            MeasurementLikelihood::User(fun) => Some(&**fun),
+            _ => None,
+        };
         if !self.per_block {
-            h.eval(&self.x, self.count(), t, u, &mut self.images)?;
+            // ℓⁱ of the user's likelihood into `w` (overwritten below, read by nothing before;
+            // restored from the log-weights after an error)
+            let evaluated = match user {
+                Some(fun) => fun.eval(&self.x, self.count(), y, t, u, &mut self.w),
+                None => h.eval(&self.x, self.count(), t, u, &mut self.images),
+            };
+            if let Err(e) = evaluated {
+                self.restore_weights();
+                return Err(e);
+            }
         }
         let (per_block, likelihood, offset) = (self.per_block, &self.likelihood, self.log_w_offset);
         let blocks = self.x.par_chunks(BLOCK * n).zip(self.images.par_chunks_mut(BLOCK * m));
@@ -167,12 +191,22 @@ impl Cloud {
         blocks.for_each(|(((((x, images), log_w), sums), top), outcome)| {
             *outcome = (|| {
                 let k = log_w.len();
+                if let Some(fun) = user {
+                    if per_block {
+                        fun.eval(x, k, y, t, u, sums)?;
+                    }
+                    check_log_likelihoods(sums, t)?;
+                    sums.iter_mut().zip(log_w).for_each(|(a, lw)| *a += lw - offset);
+                    top[0] = sums.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    return Ok(());
+                }
                 if per_block {
                     h.eval(x, k, t, u, images)?;
                 }
                 check_finite("h", t, images, "returned a")?;
                 let rows = sums.iter_mut().zip(log_w).zip(images.chunks_exact(m));
                 match (&likelihood.kind, likelihood.observed.len(), likelihood.any_angle) {
+                    (MeasurementLikelihood::User(_), ..) => {} // weighted above
                     (MeasurementLikelihood::Quantized(_), ..) => {
                         rows.for_each(|((a, lw), image)| *a = (lw - offset) + likelihood.log_cell_probability(image))
                     }
@@ -210,9 +244,7 @@ impl Cloud {
             )),
         });
         if let Err(e) = failed {
-            // the weights again, from the untouched log-weights
-            let top = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            self.w.iter_mut().zip(&self.log_w).for_each(|(w, &lw)| *w = (lw - top).exp());
+            self.restore_weights();
             return Err(e);
         }
         std::mem::swap(&mut self.log_w, &mut self.w);
@@ -230,6 +262,12 @@ impl Cloud {
         // λⁱ = log_w − increment from now on; W stays unnormalized (every use divides by ΣW)
         self.log_w_offset = increment;
         Ok(increment)
+    }
+
+    /// The weights again from the log-weights, which an update that failed left untouched.
+    fn restore_weights(&mut self) {
+        let top = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        self.w.iter_mut().zip(&self.log_w).for_each(|(w, &lw)| *w = (lw - top).exp());
     }
 
     /// The weighted mean and covariance (two passes; one triangle, mirrored) into `mean` and
@@ -284,18 +322,27 @@ impl Cloud {
         self.ess
     }
 
-    /// Resamples when the options say so (after [`moments`](Self::moments)); whether it did.
-    pub(crate) fn resample_if_due(&mut self, t: usize) -> bool {
+    /// Resamples when the options say so (after [`moments`](Self::moments)), then moves the
+    /// particles by the regularization and the user's move, if any; whether it resampled.
+    pub(crate) fn resample_if_due(&mut self, t: usize, u: Option<&[f64]>) -> Result<bool> {
         let count = self.count();
         let due = match self.options.ess_threshold {
             None => true,
             Some(tau) => self.ess < tau * count as f64,
         };
         if !due {
-            return false;
+            return Ok(false);
         }
         let stream = Stream::new(self.options.seed, t, Purpose::Resampling);
-        resample(self.options.resampling, &self.w, stream, &mut self.resampling, &mut self.ancestors);
+        // N = M / r ancestors, each then taken by r particles in a row (Söderström (9.98))
+        let copies = self.options.copies;
+        resample(self.options.resampling, &self.w, stream, &mut self.resampling, &mut self.ancestors[..count / copies]);
+        if copies > 1 {
+            // backwards, so that ancestors[j / r] (j / r < j) is read before it is overwritten
+            for j in (0..count).rev() {
+                self.ancestors[j] = self.ancestors[j / copies];
+            }
+        }
         let (n, x) = (self.n, &self.x);
         let blocks = self.next.par_chunks_mut(BLOCK * n).zip(self.ancestors.par_chunks(BLOCK));
         blocks.for_each(|(next, ancestors)| match n {
@@ -310,7 +357,30 @@ impl Cloud {
         if let Some(c) = self.options.regularize {
             self.jitter(t, c);
         }
-        true
+        if let Some(fun) = self.options.rejuvenate.clone() {
+            self.user_move(&*fun, t, u)?;
+        }
+        Ok(true)
+    }
+
+    /// xⁱ ← the user's move of xⁱ (given y(t)), checked finite.
+    fn user_move(&mut self, fun: &dyn ParticleFunction, t: usize, u: Option<&[f64]>) -> Result<()> {
+        let (n, y) = (self.n, &self.y_t);
+        if !self.per_block {
+            fun.eval(&self.x, self.count(), y, t, u, &mut self.next)?;
+        }
+        let blocks = self.x.par_chunks(BLOCK * n).zip(self.next.par_chunks_mut(BLOCK * n));
+        blocks.zip(self.outcomes.par_iter_mut()).for_each(|((x, moved), outcome)| {
+            *outcome = (|| {
+                if self.per_block {
+                    fun.eval(x, x.len() / n, y, t, u, moved)?;
+                }
+                check_finite("move", t, moved, "returned a")
+            })();
+        });
+        first_error(&mut self.outcomes)?;
+        std::mem::swap(&mut self.x, &mut self.next);
+        Ok(())
     }
 
     /// The regularization after resampling: xⁱ += h L zⁱ, L L' = P(t|t), zⁱ ~ N(0, I), with
@@ -401,6 +471,7 @@ impl Cloud {
         });
         first_error(&mut self.outcomes)?;
         std::mem::swap(&mut self.x, &mut self.next);
+        self.y_t.fill(f64::NAN);
         Ok(())
     }
 
@@ -460,6 +531,18 @@ fn lane_sums(count: usize, sums: &mut [f64], add: impl Fn(usize, &mut [f64])) {
 #[inline(always)]
 fn lower_times(l: &[f64], size: usize, a: usize, z: &[f64]) -> f64 {
     l[a * size..][..=a].iter().zip(&z[..=a]).map(|(x, y)| x * y).sum()
+}
+
+/// The user's log-likelihoods of step t: numbers or −∞ (a zero likelihood).
+fn check_log_likelihoods(values: &[f64], t: usize) -> Result<()> {
+    match values.iter().position(|v| v.is_nan() || *v == f64::INFINITY) {
+        Some(i) => Err(Error::arg_at(
+            "likelihood",
+            t,
+            format!("returned {} for a particle (a log-likelihood is a number or -inf)", values[i]),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The first block's error, in block order (so the same error whatever the threads); the
@@ -526,6 +609,9 @@ impl Likelihood {
         let mo = self.observed.len();
         if mo == 0 {
             return Ok(false);
+        }
+        if matches!(self.kind, MeasurementLikelihood::User(_)) {
+            return Ok(true);
         }
         self.y_obs.clear();
         self.y_obs.extend(self.observed.iter().map(|&i| y[i]));

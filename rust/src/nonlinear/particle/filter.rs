@@ -20,7 +20,10 @@
 //! not preceded by resampling is the known bug of some peers. The last step is not followed by
 //! a time update, so nothing is resampled there: its particles are the weighted ones.
 
+use std::sync::Arc;
+
 use super::cloud::Cloud;
+use super::custom::ParticleFunction;
 use super::resample::Resampling;
 use crate::core::alloc::check_f64_arrays;
 use crate::core::batch::{par, thread_count};
@@ -30,7 +33,7 @@ use crate::nonlinear::model::NonlinearModel;
 use crate::nonlinear::quantized::QuantizedSensor;
 
 /// How the particle filter weighs y(t) given a particle's h(x): ℓ = log p(y(t) | x).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default)]
 pub enum MeasurementLikelihood {
     /// y = h(x) + v, v ~ N(0, R): log N(y; h(x), R) on the observed components (angular
     /// outputs with their residuals wrapped).
@@ -52,6 +55,9 @@ pub enum MeasurementLikelihood {
     /// ([`quantized_loglik`](crate::nonlinear::quantized_loglik)); an angular output's h(x) is
     /// first moved by whole turns to within π of y's cell.
     Quantized(QuantizedSensor),
+    /// The user's log p(y(t) | x) at all the particles at once (h and R are not used); a
+    /// particle's −∞ is a zero likelihood, NaN or +∞ an error.
+    User(Arc<dyn ParticleFunction>),
 }
 
 /// The particle filter's settings.
@@ -59,6 +65,10 @@ pub enum MeasurementLikelihood {
 pub struct ParticleOptions {
     /// M, the number of particles (at least 1).
     pub particles: usize,
+    /// r, the copies of each resampled particle (Söderström (9.98)): resampling draws
+    /// N = M / r ancestors and each is propagated r times; M must be a multiple of r. 1 (the
+    /// default) draws M ancestors, the standard bootstrap filter.
+    pub copies: usize,
     /// How the ancestors are drawn.
     pub resampling: Resampling,
     /// `None`: resample after every update (the book's filter); `Some(τ)`, τ in (0, 1]:
@@ -70,13 +80,17 @@ pub struct ParticleOptions {
     /// callables, which hold the GIL). The work is split in blocks of a size fixed by M alone and
     /// the blocks' sums are added in order, so the result does not depend on it.
     pub threads: Option<usize>,
-    /// p(y | x): Gaussian (the default) or quantized.
+    /// p(y | x): Gaussian (the default), Student-t, uniform, quantized or the user's.
     pub likelihood: MeasurementLikelihood,
     /// `Some(c)`: after each resampling, move every particle by a draw of the Gaussian kernel
     /// h L z, L L' = P(t|t), z ~ N(0, I), h = c (4 / (M (n + 2)))^(1/(n + 4)) (Silverman's
     /// bandwidth for a Gaussian density, times c): the regularized particle filter, which
     /// keeps copies of one particle apart. `None`: off (the book's filter).
     pub regularize: Option<f64>,
+    /// `Some(move)`: after each resampling (and the regularization, if any), the particles are
+    /// replaced by `move`'s output (the resample–move filter: an MCMC step that leaves
+    /// p(x(t) | y(0..t)) invariant restores the diversity that resampling lost). `None`: off.
+    pub rejuvenate: Option<Arc<dyn ParticleFunction>>,
 }
 
 impl ParticleOptions {
@@ -84,13 +98,24 @@ impl ParticleOptions {
     pub fn new(particles: usize) -> Self {
         ParticleOptions {
             particles,
+            copies: 1,
             resampling: Resampling::Multinomial,
             ess_threshold: None,
             seed: 0,
             threads: None,
             likelihood: MeasurementLikelihood::Gaussian,
             regularize: None,
+            rejuvenate: None,
         }
+    }
+
+    /// Whether the user's functions (if any) may run on several threads at once.
+    pub(crate) fn parallel(&self) -> bool {
+        let likelihood = match &self.likelihood {
+            MeasurementLikelihood::User(fun) => fun.parallel(),
+            _ => true,
+        };
+        likelihood && self.rejuvenate.as_ref().is_none_or(|fun| fun.parallel())
     }
 
     pub(crate) fn check(&self) -> Result<()> {
@@ -109,6 +134,12 @@ impl ParticleOptions {
         }
         if self.particles == 0 {
             return Err(Error::arg("n_particles", "must be at least 1"));
+        }
+        if self.copies == 0 || !self.particles.is_multiple_of(self.copies) {
+            return Err(Error::arg(
+                "copies",
+                format!("must be at least 1 and divide n_particles = {}, got {}", self.particles, self.copies),
+            ));
         }
         if self.threads == Some(0) {
             return Err(Error::arg("threads", "must be at least 1"));
@@ -202,7 +233,7 @@ pub fn particle_filter_into(
     let every_step = check_outputs(&out, steps, n, count)?;
     let requested = options.threads;
     let mut cloud = Cloud::new(model, options)?;
-    let threads = if model.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
+    let threads = if cloud.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
     let mut loglik = 0.0;
     par::on_threads(threads, || {
         cloud.draw_prior(x0, p0);
@@ -237,7 +268,7 @@ fn step(
         cloud.copy_log_weights(&mut w[slot * count..][..count]);
     }
     if t + 1 < steps {
-        out.resampled[t] = cloud.resample_if_due(t);
+        out.resampled[t] = cloud.resample_if_due(t, u_t)?;
         cloud.propagate(model, t, u_t)?;
     }
     Ok(out.loglik_t[t])

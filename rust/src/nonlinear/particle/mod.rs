@@ -7,12 +7,14 @@
 //! number of threads.
 
 mod cloud;
+mod custom;
 mod exp;
 mod filter;
 mod random;
 mod resample;
 mod streaming;
 
+pub use custom::ParticleFunction;
 pub use filter::{
     particle_filter, particle_filter_into, MeasurementLikelihood, ParticleOptions, ParticleOutputs, ParticleResult,
 };

@@ -1,8 +1,8 @@
-//! Resampling: M ancestor indices drawn so that particle i is copied M·Wᵢ times in
-//! expectation (Söderström (9.95)–(9.97) for the multinomial scheme; Kitagawa 1996 and Douc,
-//! Cappé & Moulines 2005 for the others).
+//! Resampling: N ancestor indices drawn from M particles so that particle i is copied N·Wᵢ
+//! times in expectation (N = M, or M / r with the book's r copies; Söderström (9.95)–(9.97)
+//! for the multinomial scheme; Kitagawa 1996 and Douc, Cappé & Moulines 2005 for the others).
 //!
-//! Every scheme maps ordered uniforms u₁ ≤ … ≤ u_M in (0, 1) through the inverse of the
+//! Every scheme maps ordered uniforms u₁ ≤ … ≤ u_N in (0, 1) through the inverse of the
 //! cumulative weights: aₖ is the first j with W₁ + … + Wⱼ ≥ uₖ · ΣW (the book's
 //! W_{j−1} < u ≤ W_j, with the total in place of 1 so that rounding cannot run off the end,
 //! and a zero weight is never chosen). The indices come out in increasing order (the residual
@@ -18,15 +18,15 @@ const BLOCK: usize = 4096;
 /// How the ancestors are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Resampling {
-    /// M independent draws from the weights (the book's, (9.95)–(9.97)): the uniforms are
-    /// ordered in O(M) as the normalized partial sums of M + 1 exponential spacings.
+    /// N independent draws from the weights (the book's, (9.95)–(9.97)): the uniforms are
+    /// ordered in O(N) as the normalized partial sums of N + 1 exponential spacings.
     Multinomial,
-    /// uₖ = (k − 1 + U)/M with a single U: the least variance in most cases.
+    /// uₖ = (k − 1 + U)/N with a single U: the least variance in most cases.
     Systematic,
-    /// uₖ = (k − 1 + Uₖ)/M with M independent Uₖ.
+    /// uₖ = (k − 1 + Uₖ)/N with N independent Uₖ.
     Stratified,
-    /// ⌊M Wᵢ⌋ copies of each particle, then the remaining R draws multinomially from the
-    /// remainders M Wᵢ − ⌊M Wᵢ⌋ (Liu & Chen 1998).
+    /// ⌊N Wᵢ⌋ copies of each particle, then the remaining draws multinomially from the
+    /// remainders N Wᵢ − ⌊N Wᵢ⌋ (Liu & Chen 1998).
     Residual,
 }
 
@@ -56,22 +56,23 @@ pub(crate) struct Scratch {
     block_totals: Vec<f64>,
 }
 
-/// The ancestors `out` (M indices) of the M particles with weights `w` (not
-/// negative, finite, not all zero; normalized or not), the uniforms from `stream`.
+/// The ancestors `out` (N = `out.len()` indices) of the M particles with weights `w` (not
+/// negative, finite, not all zero; normalized or not), the uniforms from `stream`: particle i
+/// is chosen N Wᵢ times in expectation (N = M but for the book's r copies, N = M / r).
 pub(crate) fn resample(scheme: Resampling, w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize]) {
-    let m = w.len();
-    let mf = m as f64;
+    let draws = out.len();
+    let nf = draws as f64;
     let Scratch { uniforms: u, cumulative, block_totals, .. } = scratch;
     match scheme {
-        Resampling::Multinomial => ordered_uniforms(stream, m, u),
+        Resampling::Multinomial => ordered_uniforms(stream, draws, u),
         Resampling::Systematic | Resampling::Stratified => {
-            u.resize(m, 0.0);
+            u.resize(draws, 0.0);
             let u0 = stream.uniform(0);
             u.par_chunks_mut(BLOCK).enumerate().for_each(|(b, u)| {
                 for (i, v) in u.iter_mut().enumerate() {
                     let k = b * BLOCK + i;
                     let offset = if scheme == Resampling::Systematic { u0 } else { stream.uniform(k as u64) };
-                    *v = (k as f64 + offset) / mf;
+                    *v = (k as f64 + offset) / nf;
                 }
             });
         }
@@ -107,13 +108,13 @@ fn cumulative_sums(w: &[f64], c: &mut Vec<f64>, block_totals: &mut Vec<f64>) {
     });
 }
 
-/// M ordered uniforms into `u`: the partial sums of M + 1 standard exponentials (draws
-/// `0..=M` of `stream`) over their total, which are distributed as the order statistics of M
+/// N ordered uniforms into `u`: the partial sums of N + 1 standard exponentials (draws
+/// `0..=N` of `stream`) over their total, which are distributed as the order statistics of N
 /// independent uniforms.
-fn ordered_uniforms(stream: Stream, m: usize, u: &mut Vec<f64>) {
+fn ordered_uniforms(stream: Stream, draws: usize, u: &mut Vec<f64>) {
     u.clear();
     let mut sum = 0.0;
-    for k in 0..=m as u64 {
+    for k in 0..=draws as u64 {
         sum -= stream.uniform(k).ln();
         u.push(sum);
     }
@@ -141,17 +142,17 @@ fn inverse_cdf(c: &[f64], u: &[f64], out: &mut [usize]) {
 }
 
 fn residual(w: &[f64], stream: Stream, scratch: &mut Scratch, out: &mut [usize]) {
-    let m = w.len();
+    let draws = out.len();
     let total: f64 = w.iter().sum();
-    let scale = m as f64 / total;
+    let scale = draws as f64 / total;
     let mut filled = 0;
     for (i, &wi) in w.iter().enumerate() {
-        // at most M copies in all: M Wᵢ sum to M up to rounding
-        let copies = ((wi * scale).floor() as usize).min(m - filled);
+        // at most N copies in all: N Wᵢ sum to N up to rounding
+        let copies = ((wi * scale).floor() as usize).min(draws - filled);
         out[filled..filled + copies].fill(i);
         filled += copies;
     }
-    let rest = m - filled;
+    let rest = draws - filled;
     if rest == 0 {
         return;
     }
@@ -206,6 +207,27 @@ mod tests {
                 let mean = c as f64 / runs as f64;
                 // the standard error of the mean count is at most √(M w (1 − w) / runs) < 0.008
                 assert!((mean - 5.0 * w[i]).abs() < 0.04, "{scheme:?} particle {i}: {mean}");
+            }
+        }
+    }
+
+    #[test]
+    fn fewer_draws_than_particles_choose_each_n_times_its_weight() {
+        // N = 2 draws from M = 5 particles (the book's r copies: M = r N, here with M / N not
+        // whole, which the filter never asks, but the schemes do not need it)
+        let w = [0.05, 0.4, 0.15, 0.1, 0.3];
+        for scheme in SCHEMES {
+            let mut counts = [0usize; 5];
+            let runs = 20_000;
+            for seed in 0..runs {
+                let mut out = [0; 2];
+                resample(scheme, &w, Stream::new(seed, 1, Purpose::Resampling), &mut Scratch::default(), &mut out);
+                out.iter().for_each(|&a| counts[a] += 1);
+            }
+            for (i, &c) in counts.iter().enumerate() {
+                let mean = c as f64 / runs as f64;
+                // standard error at most √(N w (1 − w) / runs) < 0.005
+                assert!((mean - 2.0 * w[i]).abs() < 0.025, "{scheme:?} particle {i}: {mean}");
             }
         }
     }

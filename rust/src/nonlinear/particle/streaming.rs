@@ -32,7 +32,7 @@ impl ParticleFilter {
         options.check()?;
         let requested = options.threads;
         let mut cloud = Cloud::new(&model, options)?;
-        let threads = if model.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
+        let threads = if cloud.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
         let pool = Pool::new(threads)?;
         let (mut x, mut p) = (vec![0.0; n], vec![0.0; n * n]);
         let ess = pool.install(|| {
@@ -109,7 +109,7 @@ impl ParticleFilter {
         }
         let ParticleFilter { model, cloud, pool, x, p, .. } = self;
         let (resampled, ess) = pool.install(|| -> Result<(bool, f64)> {
-            let resampled = cloud.resample_if_due(t);
+            let resampled = cloud.resample_if_due(t, u)?;
             cloud.propagate(model, t, u)?;
             Ok((resampled, cloud.moments(x, p)))
         })?;
