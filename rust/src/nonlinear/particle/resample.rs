@@ -112,11 +112,17 @@ fn cumulative_sums(w: &[f64], c: &mut Vec<f64>, block_totals: &mut Vec<f64>) {
 /// `0..=N` of `stream`) over their total, which are distributed as the order statistics of N
 /// independent uniforms.
 fn ordered_uniforms(stream: Stream, draws: usize, u: &mut Vec<f64>) {
-    u.clear();
+    // the exponentials in parallel, their running sums in order (the same bits either way)
+    u.resize(draws + 1, 0.0);
+    u.par_chunks_mut(BLOCK).enumerate().for_each(|(b, u)| {
+        for (i, v) in u.iter_mut().enumerate() {
+            *v = -stream.uniform((b * BLOCK + i) as u64).ln();
+        }
+    });
     let mut sum = 0.0;
-    for k in 0..=draws as u64 {
-        sum -= stream.uniform(k).ln();
-        u.push(sum);
+    for v in u.iter_mut() {
+        sum += *v;
+        *v = sum;
     }
     let total = u.pop().unwrap_or(1.0);
     for v in u.iter_mut() {
