@@ -406,9 +406,10 @@ class NonlinearModel:
         keep : {None, "last", "all"}
             Also return the particles and their log-weights of the last step or of every step.
         threads : int, optional
-            Threads for the particle loops (all cores by default; one for Python callables,
-            which hold the GIL). The particles are processed in blocks of a fixed size and the
-            blocks' sums added in order, so the result is the same bits for any thread count.
+            Threads for the particle loops (all cores by default; Python callables, which hold
+            the GIL, are called once per step for all particles while the rest of the step runs on
+            the threads). The particles are processed in blocks of a fixed size and the blocks'
+            sums added in order, so the result is the same bits for any thread count.
         likelihood : kfast.StudentT, kfast.UniformNoise, kfast.Quantized or a function, optional
             None: l_i = log N(y(t); h(x_i), R). ``kfast.StudentT(nu)``: multivariate Student-t
             noise of scale R (heavy tails, robust to outliers). ``kfast.UniformNoise()``: noise

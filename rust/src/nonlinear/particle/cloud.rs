@@ -2,7 +2,7 @@
 //! parallel. A sum over the particles is summed within each block and then over the blocks in
 //! order, and every random draw is addressed by its particle, so the numbers do not depend on
 //! the thread count. f and h are called once per block — or once for all particles when they
-//! are Python callables, which hold the GIL (then everything runs on one thread).
+//! are Python callables, which hold the GIL (the rest of the work still runs on all threads).
 
 use super::custom::ParticleFunction;
 use super::exp::exp_nonpositive;
@@ -112,11 +112,6 @@ impl Cloud {
             ancestors: vec![0; count],
             resampling: Scratch::default(),
         })
-    }
-
-    /// Whether the model and the user's functions may run on several threads.
-    pub(crate) fn parallel(&self) -> bool {
-        self.per_block
     }
 
     /// The number of blocks of particles (the most threads that can share the work).

@@ -76,9 +76,11 @@ pub struct ParticleOptions {
     pub ess_threshold: Option<f64>,
     /// The seed of kfast's generator (the same seed gives the same bits, for any `threads`).
     pub seed: u64,
-    /// Threads for the particle loops (all cores when `None`; one for a model of Python
-    /// callables, which hold the GIL). The work is split in blocks of a size fixed by M alone and
-    /// the blocks' sums are added in order, so the result does not depend on it.
+    /// Threads for the particle loops (all cores when `None`; a model's functions that cannot
+    /// run in parallel — Python callables, which hold the GIL — are called once for all
+    /// particles, the rest of the step still on all threads). The work is split in blocks of a
+    /// size fixed by M alone and the blocks' sums are added in order, so the result does not
+    /// depend on it.
     pub threads: Option<usize>,
     /// p(y | x): Gaussian (the default), Student-t, uniform, quantized or the user's.
     pub likelihood: MeasurementLikelihood,
@@ -233,7 +235,7 @@ pub fn particle_filter_into(
     let every_step = check_outputs(&out, steps, n, count)?;
     let requested = options.threads;
     let mut cloud = Cloud::new(model, options)?;
-    let threads = if cloud.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
+    let threads = thread_count(requested, cloud.blocks());
     let mut loglik = 0.0;
     par::on_threads(threads, || {
         cloud.draw_prior(x0, p0);

@@ -32,7 +32,7 @@ impl ParticleFilter {
         options.check()?;
         let requested = options.threads;
         let mut cloud = Cloud::new(&model, options)?;
-        let threads = if cloud.parallel() { thread_count(requested, cloud.blocks()) } else { 1 };
+        let threads = thread_count(requested, cloud.blocks());
         let pool = Pool::new(threads)?;
         let (mut x, mut p) = (vec![0.0; n], vec![0.0; n * n]);
         let ess = pool.install(|| {
