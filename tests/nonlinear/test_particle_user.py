@@ -7,22 +7,12 @@ import numba
 import numpy as np
 import pytest
 from numba import types
+from test_particle_likelihoods import F, Q, R, f, h  # the same linear model, other noise
 
 import kfast
 from kfast.reference.particle import particle_filter
 
-F = np.array([[1.0, 1.0], [0.0, 1.0]])
-Q = np.diag([0.01, 0.04])
-R = np.diag([0.5, 0.8])
 SCHEMES = ("multinomial", "systematic", "stratified", "residual")
-
-
-def f(X, t, u):
-    return X @ F.T
-
-
-def h(X, t, u):
-    return np.column_stack([X[:, 0], X[:, 0] + X[:, 1]])
 
 
 def data(seed=0, T=25):

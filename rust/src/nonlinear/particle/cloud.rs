@@ -153,9 +153,19 @@ impl Cloud {
     }
 
     /// Weights the particles by p(y(t) | xⁱ); returns loglik_t (0 when nothing is observed).
+    /// y(t) is kept for the user's move if it succeeds (else the move sees NaN).
     pub(crate) fn update(&mut self, model: &NonlinearModel, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<f64> {
+        let result = self.weigh(model, y, t, u);
+        match result {
+            Ok(_) => self.y_t.copy_from_slice(y),
+            Err(_) => self.y_t.fill(f64::NAN),
+        }
+        result
+    }
+
+    /// [`update`](Self::update) but for keeping y(t).
+    fn weigh(&mut self, model: &NonlinearModel, y: &[f64], t: usize, u: Option<&[f64]>) -> Result<f64> {
         let sensor = model.sensor(t);
-        self.y_t.copy_from_slice(y);
         if !self.likelihood.prepare(sensor, y, t)? {
             return Ok(0.0);
         }
