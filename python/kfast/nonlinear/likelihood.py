@@ -6,13 +6,13 @@ quantization. Any other p(y | x) is a function ``likelihood(X, y, t, u)`` of all
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Callable, Optional, Union
 
 import numpy as np
 
 from kfast import _kfast
+from kfast._numbers import positive_real
 from kfast.nonlinear.quantized import Quantized
 
 __all__ = ["StudentT", "UniformNoise", "Quantized", "Likelihood", "ParticleMove"]
@@ -32,8 +32,7 @@ class StudentT:
     nu: float
 
     def __post_init__(self) -> None:
-        if isinstance(self.nu, bool) or not isinstance(self.nu, (int, float)) or not (math.isfinite(self.nu) and self.nu > 0):
-            raise _kfast.KfastError(f"nu: the degrees of freedom must be a finite number > 0, got {self.nu!r}")
+        object.__setattr__(self, "nu", positive_real("nu", self.nu))
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._args import choice, index
+from kfast._numbers import positive_real
 from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import FilterOutputs, Form, Iteration, Keep, Resample, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
@@ -560,15 +561,7 @@ def _bandwidth(value: object) -> Optional[float]:
         return None
     if value is True:
         return 1.0
-    if isinstance(value, (str, bytes, np.bool_)):
-        raise _kfast.KfastError(f"regularize: expected True, False or a factor > 0, got {value!r}")
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise _kfast.KfastError(f"regularize: expected True, False or a factor > 0, got {value!r}") from None
-    if not (np.isfinite(number) and number > 0):
-        raise _kfast.KfastError(f"regularize: the bandwidth factor must be finite and > 0, got {value!r}")
-    return number
+    return positive_real("regularize", value)
 
 
 def _fraction(name: str, value: object) -> float:

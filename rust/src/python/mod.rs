@@ -65,6 +65,11 @@ fn data<'a>(arg: &str, arr: &'a PyReadonlyArrayDyn<'_, f64>, ndim: usize) -> PyR
     if arr.ndim() != ndim {
         return Err(KfastError::new_err(format!("{arg}: expected a {ndim}-D array, got shape {:?}", arr.shape())));
     }
+    contiguous(arg, arr)
+}
+
+/// The data of a float64 array of any shape, which must be contiguous (`arg` names it).
+fn contiguous<'a>(arg: &str, arr: &'a PyReadonlyArrayDyn<'_, f64>) -> PyResult<&'a [f64]> {
     arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
 }
 

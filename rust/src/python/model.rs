@@ -7,16 +7,16 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple, PyType};
 
 use super::{
-    data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError, OutArrays,
-    FILTER_FIELDS, SMOOTH_FIELDS,
+    contiguous, data, filter_outputs, non_negative, parse_form, prior, series, series_of, to_array, KfastError,
+    OutArrays, FILTER_FIELDS, SMOOTH_FIELDS,
 };
 use crate::linear::filter::{self, FilterOptions};
 use crate::linear::model::{self, Matrices, StepMatrix};
 use crate::linear::smoother;
 
-fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
-    let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
-    Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
+/// A matrix, constant (2-D) or per step (3-D), from Python.
+pub(super) fn step_matrix(arg: &'static str, arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<StepMatrix> {
+    Ok(StepMatrix::from_shape(arg, arr.shape(), contiguous(arg, arr)?.to_vec())?)
 }
 
 /// The compiled model; `kfast.LinearGaussian` wraps it.
@@ -412,7 +412,7 @@ pub(super) fn batch_part<'a>(
             shape_str(arr.shape())
         )));
     }
-    arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))
+    contiguous(arg, arr)
 }
 
 /// A shape as Python prints it: `(4,)`, `(3, 4)`.

@@ -8,10 +8,9 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::model::{batch_part, run_batch};
-use super::{filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
+use super::model::{batch_part, run_batch, step_matrix};
+use super::{contiguous, filter_outputs, outputs, parse_form, prior, series, KfastError, OutArrays, FILTER_FIELDS};
 use crate::error::{Error, Result};
-use crate::linear::model::StepMatrix;
 use crate::nonlinear::models::{Bearing, CoordinatedTurn, RangeBearing, RangeBearingElevation, Ungm};
 use crate::nonlinear::{
     self, ConstantMap, CustomPoints, EkfOptions, Iteration, LinearMap, PointFunction, SigmaPoints, SmoothMethod,
@@ -295,16 +294,12 @@ fn point_function(
             "ungm_measurement" => Arc::new(Ungm::measurement()),
             "constant" => {
                 let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
-                let values =
-                    a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))?;
-                Arc::new(ConstantMap::new(values.to_vec(), n))
+                Arc::new(ConstantMap::new(contiguous(name, &a)?.to_vec(), n))
             }
             "linear" => {
                 let a: PyReadonlyArrayDyn<'_, f64> = params.extract()?;
                 let shape = a.shape().to_vec();
-                let values =
-                    a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))?;
-                Arc::new(LinearMap::new(values.to_vec(), shape[0], shape[1])?)
+                Arc::new(LinearMap::new(contiguous(name, &a)?.to_vec(), shape[0], shape[1])?)
             }
             other => return Err(KfastError::new_err(format!("{name}: unknown built-in model {other:?}"))),
         };
@@ -395,11 +390,6 @@ fn sigma_points((kind, alpha, beta, kappa, unit, wm, wc): PointsSpec<'_>) -> PyR
         }
         other => Err(KfastError::new_err(format!("points: unknown sigma-point set {other:?}"))),
     }
-}
-
-fn step_matrix(arg: &'static str, arr: &Array<'_>) -> PyResult<StepMatrix> {
-    let values = arr.as_slice().map_err(|_| KfastError::new_err(format!("{arg}: array is not contiguous")))?;
-    Ok(StepMatrix::from_shape(arg, arr.shape(), values.to_vec())?)
 }
 
 /// The compiled nonlinear model; `kfast.NonlinearModel` wraps it.
@@ -669,8 +659,7 @@ impl PyNonlinearModel {
                         "u: expected shape ({steps}, k) (shared) or ({bs}, {steps}, k) (one per series), got {shape:?}"
                     )));
                 }
-                let values = u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?;
-                (Some(values), !per_series)
+                (Some(contiguous("u", u)?), !per_series)
             }
         };
         let batch = crate::Batch { y, series: bs, steps, u, u_shared, x0, p0 };
@@ -954,8 +943,7 @@ fn particle_options(args: ParticleArgs<'_>, n: usize) -> PyResult<nonlinear::Par
             ("uniform", _) => Kind::Uniform,
             ("quantized", Some(quantizer)) => {
                 let (delta, low, high): Quantizer<'_> = quantizer.extract()?;
-                let delta = delta.as_slice().map_err(|_| KfastError::new_err("likelihood: delta is not contiguous"))?;
-                Kind::Quantized(quantized_sensor(delta, low.as_ref(), high.as_ref())?)
+                Kind::Quantized(quantized_sensor(contiguous("delta", &delta)?, low.as_ref(), high.as_ref())?)
             }
             ("user", Some(fun)) => Kind::User(user("likelihood", &fun, vec![])?),
             (other, _) => return Err(KfastError::new_err(format!("likelihood: unknown kind {other:?}"))),
@@ -1005,7 +993,7 @@ fn order_filter<'py>(
     if shape.len() != 2 {
         return Err(KfastError::new_err(format!("u: expected shape (T, k), got {shape:?}")));
     }
-    let values = u.as_slice().map_err(|_| KfastError::new_err("u: array is not contiguous"))?;
+    let values = contiguous("u", &u)?;
     let out = py.detach(|| filter(values, shape[0], shape[1], n, start))?;
     Ok(out.into_pyarray(py).reshape(shape)?.into_any())
 }
@@ -1015,8 +1003,7 @@ fn order_filter<'py>(
 #[pyfunction]
 pub(super) fn quantize<'py>(py: Python<'py>, x: Array<'py>, delta: Array<'py>) -> PyResult<Bound<'py, PyAny>> {
     let shape = x.shape().to_vec();
-    let values = x.as_slice().map_err(|_| KfastError::new_err("x: array is not contiguous"))?;
-    let steps = delta.as_slice().map_err(|_| KfastError::new_err("delta: array is not contiguous"))?;
+    let (values, steps) = (contiguous("x", &x)?, contiguous("delta", &delta)?);
     let mut out = vec![0.0; values.len()];
     py.detach(|| nonlinear::quantize_into(values, steps, &mut out))?;
     Ok(out.into_pyarray(py).reshape(shape)?.into_any())
@@ -1035,10 +1022,8 @@ pub(super) fn quantized_loglik<'py>(
     low: Option<Array<'py>>,
     high: Option<Array<'py>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    fn slice<'a>(name: &str, a: &'a Array<'_>) -> PyResult<&'a [f64]> {
-        a.as_slice().map_err(|_| KfastError::new_err(format!("{name}: array is not contiguous")))
-    }
-    let (y, y_hat, std, delta) = (slice("y", &y)?, slice("y_hat", &y_hat)?, slice("R", &std)?, slice("delta", &delta)?);
+    let (y, y_hat) = (contiguous("y", &y)?, contiguous("y_hat", &y_hat)?);
+    let (std, delta) = (contiguous("R", &std)?, contiguous("delta", &delta)?);
     let sensor = quantized_sensor(delta, low.as_ref(), high.as_ref())?;
     let rows = if y.is_empty() { 0 } else { y_hat.len() / y.len() };
     let mut out = vec![0.0; rows];
@@ -1052,9 +1037,7 @@ fn quantized_sensor(
     low: Option<&Array<'_>>,
     high: Option<&Array<'_>>,
 ) -> PyResult<nonlinear::QuantizedSensor> {
-    let values = |a: &Array<'_>| -> PyResult<Vec<f64>> {
-        Ok(a.as_slice().map_err(|_| KfastError::new_err("bounds: array is not contiguous"))?.to_vec())
-    };
+    let values = |a: &Array<'_>| -> PyResult<Vec<f64>> { Ok(contiguous("bounds", a)?.to_vec()) };
     let bounds = match (low, high) {
         (Some(low), Some(high)) => Some((values(low)?, values(high)?)),
         _ => None,

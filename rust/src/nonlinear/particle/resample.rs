@@ -198,21 +198,27 @@ mod tests {
         }
     }
 
+    /// The mean number of times each of the weights `W` is chosen by `draws` draws, over
+    /// 20,000 seeds (step `t` of the streams).
+    fn mean_copies(scheme: Resampling, draws: usize, t: usize) -> [f64; 5] {
+        let runs = 20_000;
+        let mut counts = [0usize; 5];
+        let mut out = vec![0; draws];
+        for seed in 0..runs {
+            resample(scheme, &W, Stream::new(seed, t, Purpose::Resampling), &mut Scratch::default(), &mut out);
+            out.iter().for_each(|&a| counts[a] += 1);
+        }
+        counts.map(|c| c as f64 / runs as f64)
+    }
+
+    const W: [f64; 5] = [0.05, 0.4, 0.15, 0.1, 0.3];
+
     #[test]
     fn expected_copies_are_m_times_the_weights() {
-        let w = [0.05, 0.4, 0.15, 0.1, 0.3];
         for scheme in SCHEMES {
-            let mut counts = [0usize; 5];
-            let runs = 20_000;
-            for seed in 0..runs {
-                let mut out = [0; 5];
-                resample(scheme, &w, Stream::new(seed, 3, Purpose::Resampling), &mut Scratch::default(), &mut out);
-                out.iter().for_each(|&a| counts[a] += 1);
-            }
-            for (i, &c) in counts.iter().enumerate() {
-                let mean = c as f64 / runs as f64;
+            for (i, mean) in mean_copies(scheme, 5, 3).into_iter().enumerate() {
                 // the standard error of the mean count is at most √(M w (1 − w) / runs) < 0.008
-                assert!((mean - 5.0 * w[i]).abs() < 0.04, "{scheme:?} particle {i}: {mean}");
+                assert!((mean - 5.0 * W[i]).abs() < 0.04, "{scheme:?} particle {i}: {mean}");
             }
         }
     }
@@ -221,19 +227,10 @@ mod tests {
     fn fewer_draws_than_particles_choose_each_n_times_its_weight() {
         // N = 2 draws from M = 5 particles (the book's r copies: M = r N, here with M / N not
         // whole, which the filter never asks, but the schemes do not need it)
-        let w = [0.05, 0.4, 0.15, 0.1, 0.3];
         for scheme in SCHEMES {
-            let mut counts = [0usize; 5];
-            let runs = 20_000;
-            for seed in 0..runs {
-                let mut out = [0; 2];
-                resample(scheme, &w, Stream::new(seed, 1, Purpose::Resampling), &mut Scratch::default(), &mut out);
-                out.iter().for_each(|&a| counts[a] += 1);
-            }
-            for (i, &c) in counts.iter().enumerate() {
-                let mean = c as f64 / runs as f64;
+            for (i, mean) in mean_copies(scheme, 2, 1).into_iter().enumerate() {
                 // standard error at most √(N w (1 − w) / runs) < 0.005
-                assert!((mean - 2.0 * w[i]).abs() < 0.025, "{scheme:?} particle {i}: {mean}");
+                assert!((mean - 2.0 * W[i]).abs() < 0.025, "{scheme:?} particle {i}: {mean}");
             }
         }
     }
