@@ -31,6 +31,7 @@ from kfast.linear.model import (
     SmootherResult,
 )
 
+from kfast.linear.diagnostics import Diagnostics
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
@@ -90,6 +91,7 @@ __all__ = [
     "model_bank",
     "gaussian_sum",
     "FilterResult",
+    "Diagnostics",
     "SmootherResult",
     "ParticleResult",
     "FixedLagResult",

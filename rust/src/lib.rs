@@ -33,6 +33,8 @@
 //!   cores (feature `rayon`, on by default), the covariance recursion computed once when it is
 //!   shared.
 //! - [`forecast`] → [`Forecast`]: k-step state and output predictions.
+//! - [`linear::diagnostics`]: is a run consistent with its model? Standardized innovations,
+//!   NIS / NEES with their χ² bounds, autocorrelation, Ljung–Box and Jarque–Bera tests.
 //! - [`propagate`]: sample paths from given noise (the core of simulation).
 //! - [`solve_discrete_are`] / [`solve_continuous_are`] of a [`RiccatiProblem`] →
 //!   [`RiccatiSolution`] (SciPy's conventions, [`DareMethod`]), [`solve_discrete_lyapunov`],

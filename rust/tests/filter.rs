@@ -639,3 +639,44 @@ fn rts_into_accepts_zero_steps() {
     let out = RtsOutputs { x_smooth: &mut [], p_smooth: &mut [], p_lag1: &mut [] };
     assert!(rts_into(&model, 0, view, out).is_ok());
 }
+
+#[test]
+fn diagnostics_of_the_true_model_stay_inside_their_bounds() {
+    use kfast::linear::diagnostics::{innovation_diagnostics, state_diagnostics, DiagnosticOptions};
+    // Söderström ex. 6.17's model, simulated: the innovations are white with variance S(t).
+    let model = scalar_model(0.8, 1.0, 0.68, 1.0);
+    let steps = 2000;
+    let mut seed = 5u64;
+    let mut normal = move || {
+        // Box–Muller from a small LCG: enough for a seeded test.
+        let mut uniform = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let (u1, u2) = (uniform(), uniform());
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    let (mut x, mut xs, mut y) = (normal(), Vec::new(), Vec::new());
+    for _ in 0..steps {
+        xs.push(x);
+        y.push(x + normal());
+        x = 0.8 * x + 0.68f64.sqrt() * normal();
+    }
+    let res =
+        filter(&model, Series::new("y", &y, steps, 1).unwrap(), None, &[0.0], &[1.0], UpdateForm::Joseph).unwrap();
+    let options = DiagnosticOptions::default();
+    let d = innovation_diagnostics(&res.innov, &res.innovation_cov, steps, 1, options).unwrap();
+    assert!(d.nis_mean_bounds[0] < d.nis_mean && d.nis_mean < d.nis_mean_bounds[1], "{d:?}");
+    assert!(d.ljung_box_pvalue[options.lags - 1] > 0.01 && d.jarque_bera_pvalue[0] > 0.01);
+    assert!((d.standardized[7] - res.innov[7] / res.innovation_cov[7].sqrt()).abs() < 1e-14);
+    let e = state_diagnostics(&xs, &res.x_filt, &res.p_filt, steps, 1, options).unwrap();
+    assert!(e.nees_mean_bounds[0] < e.nees_mean && e.nees_mean < e.nees_mean_bounds[1]);
+    // Bad input is an error naming the argument, never a panic.
+    let short = innovation_diagnostics(&res.innov[1..], &res.innovation_cov, steps, 1, options).unwrap_err();
+    assert_eq!(invalid_arg(&short).0, "innov");
+    let lags = DiagnosticOptions { lags: steps, ..options };
+    assert_eq!(
+        invalid_arg(&innovation_diagnostics(&res.innov, &res.innovation_cov, steps, 1, lags).unwrap_err()).0,
+        "lags"
+    );
+}

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Iterator, NamedTuple, Optional, Sequence, Union, cast
+from typing import TYPE_CHECKING, Any, Iterator, NamedTuple, Optional, Sequence, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -14,6 +14,7 @@ from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
 if TYPE_CHECKING:
+    from kfast.linear.diagnostics import Diagnostics
     from kfast.linear.estimation import EMResult
     from kfast.riccati.stationary import InnovationsForm, SteadyState
 
@@ -104,6 +105,78 @@ class FilterResult:
         if self.model is None or self.x_next is None or self.P_next is None:
             raise _kfast.KfastError("forecast: this FilterResult has no model or no x_next, P_next")
         return self.model.forecast(self.x_next, self.P_next, steps, u=u)
+
+    def diagnostics(self, lags: int = 10, x_true: Optional[ArrayLike] = None, burn: int = 0, alpha: float = 0.05) -> "Diagnostics":
+        """Tests of the model's consistency with the data: standardized innovations, NIS (and
+        NEES given the true states) with chi-square bounds, autocorrelation, Ljung–Box and
+        Jarque–Bera.
+
+        Under the true model the innovations are zero-mean and white with covariance S(t)
+        (Söderström ex. 6.16), so their standardized values L(t)^-1 e(t) (S = L L') are
+        N(0, I) and uncorrelated in time, and e' S^-1 e ~ chi2(m_t) (NIS). In a simulation the
+        error x - x(t|t) has covariance P(t|t), so its NEES ~ chi2(n).
+
+        Parameters
+        ----------
+        lags : int
+            Largest lag of the autocorrelations and Ljung–Box statistics (1..lags).
+        x_true : array_like, shape (T, n), optional
+            The true states of a simulation, for the NEES.
+        burn : int
+            Steps at the start left out of the tests over the run (the averages, the
+            autocorrelation, Ljung–Box, Jarque–Bera), e.g. while a vague prior is forgotten, as
+            statsmodels' ``loglikelihood_burn``. The per-step values cover every step.
+        alpha : float
+            The bounds are two-sided and hold 1 - alpha under the model.
+
+        Returns
+        -------
+        Diagnostics
+            standardized_innov, nis (+ dof, bounds, mean and its bounds), acf, acf_bound,
+            ljung_box (+ p-values), jarque_bera (+ p-values, skew, kurtosis) and, given
+            x_true, nees (+ bounds, mean and its bounds).
+
+        Raises
+        ------
+        KfastError
+            When innov or S (or x_filt, P_filt with x_true) were left out with ``outputs=``,
+            when S(t) of the observed components is not positive definite, or when a
+            component has no more observed steps than ``lags``.
+
+        Notes
+        -----
+        The standardized innovations are statsmodels' ``standardized_forecasts_error`` and the
+        Ljung–Box statistics and p-values are ``statsmodels.stats.diagnostic.acorr_ljungbox``
+        of each component (model_df = 0), Jarque–Bera is ``statsmodels.stats.stattools
+        .jarque_bera``, all after ``burn``. Missing values are left out: a step's NIS uses its
+        observed components, and the autocorrelations sum the pairs observed at both ends over
+        the N observed steps (statsmodels' ``acf(..., missing="conservative")``; statsmodels'
+        own Ljung–Box gives NaN there). Averaged NIS and NEES: Bar-Shalom, Li & Kirubarajan
+        (2001) Sec. 5.4.
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.68, R=1.0)
+        >>> x, y = model.simulate(500, x0=0.0, P0=1.0, seed=1)
+        >>> d = model.filter(y, 0.0, 1.0).diagnostics(lags=5, x_true=x)
+        >>> bool(d.nis_mean_bounds[0] <= d.nis_mean <= d.nis_mean_bounds[1])
+        True
+        >>> bool(d.ljung_box_pvalue[-1, 0] > 0.05)
+        True
+        """
+        from kfast.linear.diagnostics import diagnostics
+
+        return diagnostics(self, lags=lags, x_true=x_true, burn=burn, alpha=alpha)
+
+    def plot_diagnostics(self, component: int = 0, lags: int = 10, fig: Any = None, figsize: Any = None) -> Any:
+        """Four panels on one output component, like statsmodels' ``plot_diagnostics``: the
+        standardized innovations over time, their histogram with the N(0, 1) density, a normal
+        Q-Q plot, and the correlogram with its white-noise band (see :meth:`diagnostics`).
+        Needs matplotlib (``pip install kfast[plot]``). Returns the matplotlib Figure (``fig``
+        if given)."""
+        from kfast.linear.diagnostics import plot_diagnostics
+
+        return plot_diagnostics(self, component=component, lags=lags, fig=fig, figsize=figsize)
 
 
 _FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k not in ("model", "loglik"))

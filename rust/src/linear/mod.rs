@@ -2,6 +2,7 @@
 //! many series), the smoothers, forecasts and simulation.
 
 pub mod batch;
+pub mod diagnostics;
 pub mod filter;
 pub mod forecast;
 pub mod model;

@@ -27,6 +27,7 @@ pub mod models;
 mod particle;
 mod quantized;
 mod sigma;
+pub(crate) use sigma::cholesky;
 mod smoother;
 mod square_root;
 mod streaming;

@@ -2,6 +2,7 @@
 //! nothing else (no numerics here). The Python package `kfast` wraps it; arrays arrive here
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
+mod diagnostics;
 mod model;
 mod multiple;
 mod nonlinear;
@@ -375,6 +376,9 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solvers::solve_continuous_lyapunov, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::stationary_covariance, m)?)?;
     m.add_function(wrap_pyfunction!(model::filter_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnostics::innovation_diagnostics, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnostics::state_diagnostics, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnostics::chi_square, m)?)?;
     m.add_function(wrap_pyfunction!(check_alloc, m)?)?;
     m.add_function(wrap_pyfunction!(kernel_info, m)?)?;
     m.add_function(wrap_pyfunction!(set_deterministic, m)?)?;
