@@ -32,6 +32,7 @@ from kfast.linear.model import (
 )
 
 from kfast.linear.diagnostics import Diagnostics
+from kfast.linear.posterior import DisturbanceSmootherResult, PosteriorDraws
 from kfast.arithmetic import deterministic, kernel_info, set_deterministic
 from kfast.nonlinear.model import NonlinearModel
 from kfast.nonlinear.particle import ParticleResult
@@ -92,6 +93,8 @@ __all__ = [
     "gaussian_sum",
     "FilterResult",
     "Diagnostics",
+    "DisturbanceSmootherResult",
+    "PosteriorDraws",
     "SmootherResult",
     "ParticleResult",
     "FixedLagResult",

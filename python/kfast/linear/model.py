@@ -14,6 +14,7 @@ from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
 
 if TYPE_CHECKING:
+    from kfast.linear.posterior import DisturbanceSmootherResult, PosteriorDraws
     from kfast.linear.diagnostics import Diagnostics
     from kfast.linear.estimation import EMResult
     from kfast.riccati.stationary import InnovationsForm, SteadyState
@@ -806,6 +807,106 @@ class LinearGaussian:
         out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form), outputs=_output_names(outputs))
         filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
+
+    def disturbance_smooth(
+        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike] = None
+    ) -> "DisturbanceSmootherResult":
+        """The disturbance smoother: the mean and covariance of each w(t) and v(t) given all the
+        data (Durbin & Koopman (2012) Sec. 4.5; KFAS's ``etahat``, ``V_eta``, ``epshat``,
+        ``V_eps``; statsmodels' ``smoothed_state_disturbance``).
+
+        Parameters
+        ----------
+        y, x0, P0, u
+            As in :meth:`filter` (missing values NaN).
+
+        Returns
+        -------
+        DisturbanceSmootherResult
+            w_smooth (T, n), w_cov (T, n, n), v_smooth (T, m), v_cov (T, m, m) and the state
+            smoother they come from.
+
+        Notes
+        -----
+        Given all states and the data, the noise xi(t) = (w(t), v(t)) ~ N(0, [[Q, N], [N', R]]) is
+        known where it is "seen": w(t) = x(t+1) - F x(t) - B u(t) for t < T-1 and each observed
+        v_i(t) = y_i(t) - H_i x(t) - D_i u(t). The rest (w(T-1), which moves the state past the
+        data, and missing components of v) is Gaussian given the seen part o(t) alone. So with
+        A = J (Pi J Pi)^+ Pi (Pi the mask of o):
+
+            E[xi | y] = A E[o | y],    Var(xi | y) = J - A J + A Var(o | y) A'
+
+        where E[o | y] and Var(o | y) follow from x(t|T-1), P(t|T-1) and the lag-one covariance
+        of the RTS smoother. With N = 0 and nothing missing this is w(t|T-1) = x(t+1|T-1) -
+        F x(t|T-1) - B u(t) and v(t|T-1) = y(t) - H x(t|T-1) - D u(t), Var = H P(t|T-1) H'.
+
+        Examples
+        --------
+        >>> walk = kfast.LinearGaussian(F=1.0, H=1.0, Q=1.0, R=2.0)
+        >>> ds = walk.disturbance_smooth([1.0, 0.5, 2.0], x0=0.0, P0=1.0)
+        >>> print(ds.w_smooth[:, 0].round(4), ds.v_cov[:, 0, 0].round(4))
+        [0.2674 0.407  0.    ] [0.5116 0.6977 0.9767]
+        """
+        from kfast.linear.posterior import disturbance_smooth
+
+        return disturbance_smooth(self, y, x0, P0, u=u)
+
+    def simulation_smoother(
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        draws: int = 1,
+        seed: Union[int, np.random.Generator, None] = None,
+        variates: Optional[dict] = None,
+    ) -> "PosteriorDraws":
+        """Draws of the states and disturbances from their joint posterior p(x, w, v | y): the
+        simulation smoother of Durbin & Koopman (2002), for Gibbs samplers and other Bayesian
+        uses of state-space models.
+
+        Parameters
+        ----------
+        y, x0, P0, u
+            As in :meth:`filter` (missing values NaN).
+        draws : int
+            Number of independent draws.
+        seed : int or numpy.random.Generator, optional
+            Makes the draws reproducible.
+        variates : dict, optional
+            The standard normal variates to use instead of drawing them:
+            ``{"initial": (draws, n), "state": (draws, T, n), "measurement": (draws, T, m)}``
+            (statsmodels' ``initial_state_variates``, ``state_disturbance_variates``,
+            ``measurement_disturbance_variates``; KFAS's ``u``), mapped to x(0) = x0 + L0 z0 and
+            (w, v) = L (z_w, z_v) with L0, L the lower Cholesky factors of P0 and
+            [[Q, N], [N', R]] (the symmetric square root when singular).
+
+        Returns
+        -------
+        PosteriorDraws
+            x (draws, T, n), w (draws, T, n), v (draws, T, m).
+
+        Notes
+        -----
+        The mean correction of Durbin & Koopman (2002): draw (x+, y+) from the model, then
+        x~ = x+ + E[x | y] - E[x+ | y+] = x+ + E0[x | y - y+], where E0 is the smoother with a
+        zero prior mean and no inputs (the smoother is linear in the data); the disturbances
+        likewise with :meth:`disturbance_smooth`'s means. Each draw costs one smoother pass.
+        The draws have the smoothed means and covariances; given the same variates they equal
+        KFAS's ``simulateSSM`` (tests/data/kfas_simulation_smoothing.csv).
+
+        Examples
+        --------
+        >>> walk = kfast.LinearGaussian(F=1.0, H=1.0, Q=1.0, R=2.0)
+        >>> post = walk.simulation_smoother([1.0, 0.5, 2.0], x0=0.0, P0=1.0, draws=4000, seed=1)
+        >>> post.x.shape
+        (4000, 3, 1)
+        >>> print(post.x.mean(axis=0)[:, 0].round(1), walk.smooth([1.0, 0.5, 2.0], 0.0, 1.0).x_smooth[:, 0].round(1))
+        [0.5 0.8 1.2] [0.5 0.8 1.2]
+        """
+        from kfast.linear.posterior import simulation_smoother
+
+        return simulation_smoother(self, y, x0, P0, u=u, draws=draws, seed=seed, variates=variates)
 
     def smooth_fixed_lag(
         self,
