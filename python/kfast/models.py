@@ -43,6 +43,7 @@ from kfast._numbers import integer_lags, powers_applied
 from kfast.linear.model import LinearGaussian
 from kfast.nonlinear.model import BuiltinFunction
 from kfast.sampling import discretize
+from kfast.structural import arma, combine, cycle, local_level, local_linear_trend, seasonal, smooth_trend
 
 __all__ = [
     "coordinated_turn",
@@ -60,6 +61,13 @@ __all__ = [
     "damped_resonator",
     "singer",
     "ar",
+    "local_level",
+    "local_linear_trend",
+    "smooth_trend",
+    "seasonal",
+    "cycle",
+    "arma",
+    "combine",
     "augment",
     "Continuous",
     "continuous",
