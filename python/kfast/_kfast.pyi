@@ -113,6 +113,17 @@ class LinearGaussian:
         converge_tol: Optional[float] = None,
         outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
+    def filter_diffuse(
+        self,
+        y: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        P0: NDArray[np.float64],
+        P0_inf: NDArray[np.float64],
+        u: Optional[NDArray[np.float64]] = None,
+        form: Form = "joseph",
+        converge_tol: Optional[float] = None,
+        outputs: Optional[Sequence[str]] = None,
+    ) -> dict[str, Any]: ...
     def loglik(
         self,
         y: NDArray[np.float64],

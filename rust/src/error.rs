@@ -69,6 +69,17 @@ impl Error {
 }
 
 impl Error {
+    /// The same error naming argument `to` where it named `from` (a check written for one
+    /// argument applied to another).
+    pub(crate) fn renamed(self, from: &'static str, to: &'static str) -> Self {
+        match self {
+            Error::InvalidArgument { arg, step, problem } if arg == from => {
+                Error::InvalidArgument { arg: to, step, problem }
+            }
+            other => other,
+        }
+    }
+
     /// The same error with `context` (e.g. "mode 2") before its problem, for the filters a
     /// multiple-model filter runs.
     pub(crate) fn within(self, context: &str) -> Self {

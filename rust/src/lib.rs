@@ -85,7 +85,8 @@ pub use self::core::Series;
 pub use error::{Error, Result};
 pub use linear::batch::filter_batch;
 pub use linear::filter::{
-    filter, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter, UpdateForm,
+    filter, filter_diffuse_into, filter_into, loglik, FilterOptions, FilterOutputs, FilterResult, KalmanFilter,
+    UpdateForm,
 };
 pub use linear::forecast::{forecast, Forecast};
 pub use linear::model::{LinearGaussian, Matrices, StepMatrix};

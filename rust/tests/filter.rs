@@ -680,3 +680,48 @@ fn diagnostics_of_the_true_model_stay_inside_their_bounds() {
         "lags"
     );
 }
+
+#[test]
+fn exact_diffuse_start_of_a_local_level_is_koopmans_closed_form() {
+    use kfast::filter_diffuse_into;
+    // Koopman (1997): a random walk with unknown start. After y(0), x(1|0) = y(0) and
+    // P(1|0) = R + Q exactly; the first log-likelihood term is −½ log 2π (F_∞ = 1).
+    let (q, r) = (8.253, 1.993);
+    let model = scalar_model(1.0, 1.0, q, r);
+    let y = [10.2394, 1.0, 1.0];
+    // Buffers of the right sizes: any filter result of the same shape.
+    let mut res =
+        filter(&model, Series::new("y", &y, 3, 1).unwrap(), None, &[0.0], &[1.0], UpdateForm::Joseph).unwrap();
+    let mut p_inf = vec![0.0; 3];
+    let (loglik, diffuse) = filter_diffuse_into(
+        &model,
+        Series::new("y", &y, 3, 1).unwrap(),
+        None,
+        &[0.0],
+        &[0.0],
+        &[1.0],
+        UpdateForm::Joseph,
+        res.outputs(),
+        Some(&mut p_inf),
+    )
+    .unwrap();
+    assert_eq!(diffuse, 1);
+    assert_eq!(p_inf, [1.0, 0.0, 0.0]);
+    assert_close("x_pred", &res.x_pred[1..2], &[10.2394], 1e-14);
+    assert_close("P_pred", &res.p_pred[1..2], &[q + r], 1e-14);
+    assert_close("loglik_t", &res.loglik_t[..1], &[-0.5 * (2.0 * std::f64::consts::PI).ln()], 1e-14);
+    assert!((loglik - res.loglik_t.iter().sum::<f64>()).abs() < 1e-12);
+    // A diffuse part that is not a covariance is refused by name.
+    let bad = filter_diffuse_into(
+        &model,
+        Series::new("y", &y, 3, 1).unwrap(),
+        None,
+        &[0.0],
+        &[0.0],
+        &[-1.0],
+        UpdateForm::Joseph,
+        res.outputs(),
+        None,
+    );
+    assert_eq!(invalid_arg(&bad.unwrap_err()).0, "P0_inf");
+}

@@ -127,13 +127,14 @@ def test_outputs_names_must_be_strings():
 
 def test_filter_result_fields_are_the_crates_output_table():
     """The Python FilterResult declares exactly the outputs of the crate's one table
-    (kfast._kfast.FILTER_FIELDS), in its order, plus the total loglik and the model."""
+    (kfast._kfast.FILTER_FIELDS), in its order, plus the total loglik, the model and the exact
+    diffuse start's P_pred_inf and n_diffuse."""
     import dataclasses
 
     from kfast import _kfast
 
     names = [f.name for f in dataclasses.fields(kfast.FilterResult)]
-    assert [n for n in names if n not in ("loglik", "model")] == [name for name, _ in _kfast.FILTER_FIELDS]
+    assert [n for n in names if n not in ("loglik", "model", "P_pred_inf", "n_diffuse")] == [name for name, _ in _kfast.FILTER_FIELDS]
     T, n, m = 7, 3, 2
     model = kfast.LinearGaussian(np.eye(n) * 0.5, np.ones((m, n)), np.eye(n), np.eye(m))
     res = model.filter(np.zeros((T, m)), np.zeros(n), np.eye(n))

@@ -74,6 +74,7 @@ def fit(
     method: str = "L-BFGS-B",
     bounds: Optional[Sequence] = None,
     options: Optional[dict] = None,
+    P0_inf: Optional[ArrayLike] = None,
 ) -> FitResult:
     """Maximum-likelihood estimates of the parameters theta of a model.
 
@@ -95,6 +96,10 @@ def fit(
         Bounds on theta, for the methods that take them.
     options : dict, optional
         Options of the optimizer.
+    P0_inf : array_like, shape (n, n), optional
+        The diffuse part of the prior (exact diffuse initialization, see
+        :meth:`LinearGaussian.filter`): then the diffuse log-likelihood is maximized and build's
+        P0 is the finite part.
 
     Returns
     -------
@@ -137,12 +142,12 @@ def fit(
     y = as_float64("y", y)
     u = None if u is None else as_float64("u", u)
     model0, x00, P00 = _build(build, theta0, "theta0")
-    ll0 = _fit_loglik0(model0, x00, P00, y, u)
+    ll0 = _fit_loglik0(model0, x00, P00, y, u, P0_inf)
 
     def loglik(theta):
         try:
             model, x0, P0 = _build(build, theta, "theta")
-            return model.loglik(y, x0, P0, u=u)
+            return model.loglik(y, x0, P0, u=u, P0_inf=P0_inf)
         except KfastError:
             return -np.inf
 
@@ -172,10 +177,10 @@ def _fit_theta0(theta0: ArrayLike) -> np.ndarray:
 _Y_SQUARE_LIMIT = 1e154
 
 
-def _fit_loglik0(model: LinearGaussian, x0, P0, y: np.ndarray, u: Optional[np.ndarray]) -> float:
+def _fit_loglik0(model: LinearGaussian, x0, P0, y: np.ndarray, u: Optional[np.ndarray], P0_inf=None) -> float:
     """The log-likelihood at theta0, with errors that say whether y or build is at fault."""
     try:
-        ll0 = model.loglik(y, x0, P0, u=u)
+        ll0 = model.loglik(y, x0, P0, u=u, P0_inf=P0_inf)
     except KfastError as exc:
         if str(exc).startswith(("x0:", "P0:")):  # the prior comes from build
             raise KfastError(f"build: theta0 gave an invalid prior: {exc}") from exc

@@ -69,6 +69,14 @@ class FilterResult:
     """x(T|T-1): the prediction one step past the data, shape (n,)."""
     P_next: Optional[np.ndarray] = None
     """P(T|T-1), shape (n, n)."""
+    P_pred_inf: Optional[np.ndarray] = None
+    """With an exact diffuse start (``P0_inf``): the diffuse part P_inf(t|t-1) of P(t|t-1) =
+    P_pred + kappa P_pred_inf, kappa -> inf, shape (T, n, n); zero from step ``n_diffuse`` on.
+    None otherwise."""
+    n_diffuse: int = 0
+    """The number d of diffuse steps of an exact diffuse start (P_inf(d|d-1) = 0): in steps
+    t < d, P_pred and P_filt are the finite parts P_* and the log-likelihood term is the
+    diffuse one. 0 without ``P0_inf``."""
     model: Optional["LinearGaussian"] = field(default=None, repr=False, compare=False)
     """The model that was filtered."""
 
@@ -180,7 +188,7 @@ class FilterResult:
         return plot_diagnostics(self, component=component, lags=lags, fig=fig, figsize=figsize)
 
 
-_FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k not in ("model", "loglik"))
+_FILTER_FIELDS = tuple(k for k in FilterResult.__dataclass_fields__ if k not in ("model", "loglik", "P_pred_inf", "n_diffuse"))
 
 
 @dataclass(frozen=True, repr=False)
@@ -465,6 +473,7 @@ class LinearGaussian:
         steady_state: bool = False,
         converge_tol: Optional[float] = None,
         outputs: FilterOutputs = None,
+        P0_inf: Optional[ArrayLike] = None,
     ) -> FilterResult:
         """Kalman filter over the observations y.
 
@@ -498,11 +507,17 @@ class LinearGaussian:
         outputs : str or iterable of str, optional
             The names of the fields to store (e.g. ``("x_filt", "P_filt")``); the others are None,
             which saves their memory and time. All by default.
+        P0_inf : array_like, shape (n, n), optional
+            The diffuse part of the prior, for states whose initial value is unknown (random
+            walks, trends, seasonals, nonstationary ARMA parts): P(0|-1) = P0 + kappa P0_inf with
+            kappa -> inf, handled exactly (KFAS's ``P1inf``; P0 is then the finite part P_*,
+            e.g. zero in the diffuse directions). See Notes.
 
         Returns
         -------
         FilterResult
-            x_pred, P_pred, x_filt, P_filt, innov, S, K, K_pred, loglik, loglik_t, x_next, P_next.
+            x_pred, P_pred, x_filt, P_filt, innov, S, K, K_pred, loglik, loglik_t, x_next, P_next
+            (and with ``P0_inf``: P_pred_inf, n_diffuse).
 
         Raises
         ------
@@ -522,6 +537,18 @@ class LinearGaussian:
             P(t+1|t) = F P(t|t-1) F' + Q - K_pred S K_pred'
 
         and the log-likelihood is the sum over t of log N(e(t); 0, S(t)) (Söderström (6.142)).
+
+        With ``P0_inf`` the first d = ``n_diffuse`` steps run the exact diffuse recursion of
+        Koopman (1997) in the univariate form of Durbin & Koopman (2012) Sec. 6.4 (the observed
+        components one at a time, decorrelated first when R is not diagonal; N must be 0), until
+        the diffuse part of P is zero; then the ordinary filter continues. P_pred and P_filt of
+        those steps are the finite parts P_*, S is H P_* H' + R, K the limit gain. The
+        log-likelihood is the diffuse one, Durbin & Koopman (2012) Sec. 7.2.2: a component whose
+        diffuse variance F_inf = h P_inf h' is positive adds -(log 2 pi + log F_inf) / 2 (its
+        innovation carries no information about the parameters), the others the usual term.
+        This is statsmodels' value; KFAS leaves out the log 2 pi of the F_inf > 0 terms, so its
+        logLik is larger by (log 2 pi) / 2 per such term. A large P0 instead ("approximate
+        diffuse") gives a log-likelihood that depends on its size.
 
         Examples
         --------
@@ -547,7 +574,13 @@ class LinearGaussian:
             raise _kfast.KfastError("P0: required unless steady_state=True")
         args = self._data(y, x0, P0, u)
         names = _output_names(outputs)
-        out = self._core.filter(*args, form=_form(form), converge_tol=tolerance("converge_tol", converge_tol), outputs=names)
+        tol = tolerance("converge_tol", converge_tol)
+        if P0_inf is not None:
+            y_, x0_, P0_, u_ = args
+            P_inf = self._prior(x0, P0_inf, ("x0", "P0_inf"))[1]
+            out = self._core.filter_diffuse(y_, x0_, P0_, P_inf, u=u_, form=_form(form), converge_tol=tol, outputs=names)
+            return FilterResult(**out, model=self)
+        out = self._core.filter(*args, form=_form(form), converge_tol=tol, outputs=names)
         return FilterResult(**out, model=self)
 
     def loglik(
@@ -558,13 +591,14 @@ class LinearGaussian:
         u: Optional[ArrayLike] = None,
         form: Form = "joseph",
         converge_tol: Optional[float] = None,
+        P0_inf: Optional[ArrayLike] = None,
     ) -> float:
         """The log-likelihood of y alone, without storing any per-step output.
 
         Parameters
         ----------
-        y, x0, P0, u, form, converge_tol
-            As for :meth:`filter`.
+        y, x0, P0, u, form, converge_tol, P0_inf
+            As for :meth:`filter` (with ``P0_inf``, the exact diffuse log-likelihood).
 
         Returns
         -------
@@ -583,6 +617,8 @@ class LinearGaussian:
         >>> print(round(model.loglik([0.3, -0.1, 0.7], x0=0.0, P0=1.0), 4))
         -3.9509
         """
+        if P0_inf is not None:
+            return self.filter(y, x0, P0, u=u, form=form, converge_tol=converge_tol, outputs=(), P0_inf=P0_inf).loglik
         return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=tolerance("converge_tol", converge_tol))
 
     def steady_state(self, method: DareMethod = "doubling") -> "SteadyState":
@@ -758,13 +794,15 @@ class LinearGaussian:
         u: Optional[ArrayLike] = None,
         form: Form = "joseph",
         outputs: SmoothOutputs = None,
+        P0_inf: Optional[ArrayLike] = None,
     ) -> SmootherResult:
         """Rauch-Tung-Striebel fixed-interval smoother: every state given all the data.
 
         Parameters
         ----------
-        y, x0, P0, u, form
-            As for :meth:`filter` (the same missing-data rules).
+        y, x0, P0, u, form, P0_inf
+            As for :meth:`filter` (the same missing-data rules; with ``P0_inf`` the exact
+            diffuse smoother, see Notes).
         outputs : str or iterable of str, optional
             The names of the fields to store, among "x_smooth", "P_smooth", "P_lag1" and the
             filter's (e.g. ``("x_smooth", "P_smooth")``); the others are None. All by default.
@@ -793,6 +831,13 @@ class LinearGaussian:
         (F - N R^-1 H in place of F), written without R^-1. A singular P(t+1|t) is handled with
         its pseudo-inverse. The lag-one covariance is P(t+1|T-1) J(t)'.
 
+        With ``P0_inf`` (exact diffuse initialization) the result is the exact diffuse smoother
+        (Durbin & Koopman (2012) Sec. 5.3), computed by de Jong's (1991) augmentation: the
+        ordinary smoother from (x0, P0) corrected by the generalized least-squares estimate of
+        the diffuse part of x(0), with its uncertainty added to P(t|T-1)
+        (docs/algorithms.md, "Exact diffuse initialization"); ``.filter`` is the exact diffuse
+        filter. The data must determine every diffuse direction.
+
         Examples
         --------
         The random walk of Söderström ch. 8 with beta = 1 (Q = 1, R = beta (beta + 1) = 2): the
@@ -804,6 +849,11 @@ class LinearGaussian:
         >>> print(round(sm.filter.P_filt[20, 0, 0], 6), round(sm.P_smooth[20, 0, 0], 6))
         1.0 0.666667
         """
+        if P0_inf is not None:
+            from kfast.linear.diffuse import smooth
+
+            names = _output_names(outputs)
+            return smooth(self, y, x0, P0, P0_inf, u, _form(form), None if names is None else tuple(names))
         out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form), outputs=_output_names(outputs))
         filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)

@@ -138,7 +138,7 @@ fn means_only_all<D: Dims>(
     let rows = x_filt.par_chunks_mut(t * n).zip(loglik.par_iter_mut()).enumerate();
     rows.for_each(|(s, (x_out, ll))| {
         let (y, u, x0, p0) = b.part(s, sizes(model));
-        let run = Run { model, y, u, x0, p0, form, converge_tol: None, kernel };
+        let run = Run { model, y, u, x0, p0, form, converge_tol: None, kernel, start: 0 };
         // Each series in a loop of the call's instruction set (a closure run by the thread
         // pool is not compiled with it).
         *ll = run_best!(kernel, d, |d| run.means_only(d, gains, x_out));
@@ -181,7 +181,7 @@ fn run_each(
     out.x_filt.par_chunks_mut(t * n).zip(out.loglik.par_iter_mut()).zip(covs).enumerate().try_for_each(
         |(s, ((x_out, ll), p_out))| -> Result<()> {
             let (y, u, x0, p0) = b.part(s, sizes(model));
-            let run = Run { model, y, u, x0, p0, form, converge_tol: None, kernel };
+            let run = Run { model, y, u, x0, p0, form, converge_tol: None, kernel, start: 0 };
             let mut o = FilterOutputs::default();
             (o.x_filt, o.p_filt) = (Some(x_out), p_out);
             *ll = with_dims!(n, m, |d| run.filter(d, &mut o)).map_err(|e| prefix_series(e, s))?;

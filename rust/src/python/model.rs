@@ -130,6 +130,45 @@ impl PyLinearGaussian {
         Ok(dict)
     }
 
+    /// The filter with an exact diffuse start P(0|-1) = P0 + kappa P0_inf, kappa -> inf; the
+    /// dict adds "n_diffuse" (d) and "P_pred_inf" (T, n, n).
+    #[pyo3(signature = (y, x0, P0, P0_inf, u=None, form="joseph", converge_tol=None, outputs=None))]
+    #[allow(non_snake_case)]
+    #[allow(clippy::too_many_arguments)]
+    fn filter_diffuse<'py>(
+        &self,
+        py: Python<'py>,
+        y: Array<'py>,
+        x0: Array<'py>,
+        P0: Array<'py>,
+        P0_inf: Array<'py>,
+        u: Option<Array<'py>>,
+        form: &str,
+        converge_tol: Option<f64>,
+        outputs: Option<Vec<String>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let form = FilterOptions { form: parse_form(form)?, converge_tol };
+        let (y, u) = series(&y, u.as_ref())?;
+        let n = self.inner.n_states();
+        let (x0, p0) = prior(&x0, &P0, n)?;
+        let p0_inf = data("P0_inf", &P0_inf, 2)?;
+        let m = self.inner.n_obs();
+        let mut out = OutArrays::for_filter(py, y.steps(), n, m, outputs.as_deref())?
+            .with_written_in_full(py, &[("P_pred_inf", &[y.steps(), n, n])])?;
+        let names = out.names.clone();
+        let mut slices = out.slices()?;
+        let inf = slices.pop();
+        let model = &*self.inner;
+        let (loglik, diffuse) = py.detach(|| {
+            filter::filter_diffuse_into(model, y, u, x0, p0, p0_inf, form, filter_outputs(&names, &mut slices), inf)
+        })?;
+        drop(slices);
+        let dict = out.into_dict(py)?;
+        dict.set_item("loglik", loglik)?;
+        dict.set_item("n_diffuse", diffuse)?;
+        Ok(dict)
+    }
+
     /// The log-likelihood alone.
     #[pyo3(signature = (y, x0, P0, u=None, form="joseph", converge_tol=None))]
     #[allow(non_snake_case)]

@@ -6,6 +6,7 @@
 //! a missing component. `u` is `(T, k)`; `u[t]` enters `x[t+1]` through B and `y[t]` through D.
 //! The recursion is Söderström Lemma 6.1 / (6.24) (docs/algorithms.md, "Filter recursion").
 
+mod diffuse;
 mod outputs;
 pub(crate) mod step;
 mod streaming;
@@ -20,8 +21,9 @@ use std::borrow::Borrow;
 use crate::core::dims::{with_dims, Buf, Dims};
 use crate::core::gaussian::LoglikSum;
 use crate::core::isa::{kernel, run_best, Kernel};
+use crate::core::validate::check_prior;
 pub use crate::core::Series;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::linear::model::{LinearGaussian, StepView};
 use crate::linear::validate::check_converge_tol;
 pub(crate) use crate::linear::validate::{check_data, check_series};
@@ -91,8 +93,63 @@ pub fn filter_into(
     let steps = check_data(model, y, u, x0, p0)?;
     out.check_sizes(steps, n, m)?;
     let converge_tol = check_converge_tol(model, options.converge_tol)?;
-    let run = Run { model, y, u, x0, p0, form: options.form, converge_tol, kernel: kernel() };
+    let run = Run { model, y, u, x0, p0, form: options.form, converge_tol, kernel: kernel(), start: 0 };
     with_dims!(n, m, |d| run.filter(d, &mut out))
+}
+
+/// [`filter_into`] with an exact diffuse start (docs/algorithms.md, "Exact diffuse
+/// initialization"): P(0|−1) = `p0` + κ `p0_inf`, κ → ∞, for states whose initial value is
+/// unknown (Koopman 1997; Durbin & Koopman (2012) Sec. 5.2 and 6.4). The first d steps run the
+/// univariate exact diffuse recursion (their P_pred and P_filt are the finite parts P_*, and
+/// `p_pred_inf`, if given, `(T, n, n)`, receives P_∞(t|t−1) for t < d, zero after); the
+/// ordinary filter takes over once P_∞ = 0. Returns the diffuse log-likelihood (Durbin &
+/// Koopman (2012) Sec. 7.2.2, with log 2π for every observation) and d.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_diffuse_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    p0_inf: &[f64],
+    options: impl Into<FilterOptions>,
+    mut out: FilterOutputs<'_>,
+    mut p_pred_inf: Option<&mut [f64]>,
+) -> Result<(f64, usize)> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let options = options.into();
+    let steps = check_data(model, y, u, x0, p0)?;
+    check_prior(n, x0, p0_inf).map_err(|e| e.renamed("P0", "P0_inf"))?;
+    out.check_sizes(steps, n, m)?;
+    if let Some(buf) = p_pred_inf.as_deref_mut() {
+        if buf.len() != steps * n * n {
+            return Err(Error::arg(
+                "P_pred_inf",
+                format!("output buffer has {} entries, needs {}", buf.len(), steps * n * n),
+            ));
+        }
+        buf.fill(0.0);
+    }
+    let converge_tol = check_converge_tol(model, options.converge_tol)?;
+    let start = diffuse::diffuse_start(model, y, u, x0, p0, p0_inf, &mut out, p_pred_inf)?;
+    if start.steps == steps {
+        out.store_next(&start.x, &start.p);
+        return Ok((start.loglik, start.steps));
+    }
+    check_prior(n, &start.x, &start.p).map_err(|e| e.renamed("P0", "P(d|d-1)"))?;
+    let run = Run {
+        model,
+        y,
+        u,
+        x0: &start.x,
+        p0: &start.p,
+        form: options.form,
+        converge_tol,
+        kernel: kernel(),
+        start: start.steps,
+    };
+    let rest = with_dims!(n, m, |d| run.filter(d, &mut out))?;
+    Ok((start.loglik + rest, start.steps))
 }
 
 /// The log-likelihood `Σ_t log p(y(t) | y(0..t−1))` alone (Söderström (6.142)), without
@@ -121,6 +178,9 @@ pub(crate) struct Run<'a> {
     pub converge_tol: Option<f64>,
     /// The loops to run (`core::isa`), read once per call.
     pub kernel: Kernel,
+    /// The first step to filter (after an exact diffuse start; 0 otherwise): `x0`, `p0` are
+    /// then x̂(start|start−1), P(start|start−1).
+    pub start: usize,
 }
 
 /// A constant model's F, H, Q, R and N copied once into buffers of the call's sizes (local
@@ -229,7 +289,7 @@ impl Run<'_> {
     ) -> Result<f64> {
         let mut copy: Option<Box<Workspace<D>>> = None;
         let mut total = LoglikSum::default();
-        for t in 0..self.y.steps() {
+        for t in self.start..self.y.steps() {
             let sys = at(t);
             let sys = sys.borrow();
             let (y, u_t) = (self.y.row(t), self.u.map(|u| u.row(t)));

@@ -190,6 +190,11 @@ impl FilterOutputs<'_> {
         }
     }
 
+    /// Stores the predictor gain of step t (given as a slice).
+    pub(crate) fn store_gain_pred(&mut self, t: usize, gain_pred: &[f64]) {
+        store(&mut self.gain_pred, t, gain_pred);
+    }
+
     /// An error if the predictor gain `K_pred` was asked for (a filter that does not compute it).
     pub(crate) fn refuse_gain_pred(&self, filter: &str) -> Result<()> {
         if self.gain_pred.is_some() {
