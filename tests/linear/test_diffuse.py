@@ -226,3 +226,25 @@ def test_fit_with_an_exact_diffuse_start_equals_statsmodels():
     res = kfast.fit(build, [0.0, 0.0], y, P0_inf=[[1.0]])
     assert res.loglik == pytest.approx(ref.llf, abs=1e-6)
     np.testing.assert_allclose(np.exp(res.theta), ref.params, rtol=1e-3)
+
+
+def test_local_linear_trend_with_a_missing_value_equals_kfas():
+    from pathlib import Path
+
+    import pandas as pd
+
+    kfas = pd.read_csv(Path(__file__).resolve().parents[1] / "data" / "kfas_exact_diffuse_local_linear_trend.csv", comment="#")
+    model = models.local_linear_trend(8.253, 2.334, irregular=1.993)
+    y = np.r_[Y1, np.nan, Y3, [1.0] * 7]
+    sm = model.smooth(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2))
+    res = sm.filter
+    np.testing.assert_allclose(res.x_pred, kfas[["a_1", "a_2"]][:10], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(res.x_next, kfas[["a_1", "a_2"]].iloc[10], rtol=1e-9)
+    np.testing.assert_allclose(res.P_pred.sum(axis=(1, 2)), kfas["sumP"][:10], rtol=1e-9)
+    d = res.n_diffuse
+    np.testing.assert_allclose(res.P_pred_inf[:d].sum(axis=(1, 2)), kfas["sumPinf"][:d], rtol=1e-12)
+    assert np.isnan(kfas["sumPinf"][d])
+    np.testing.assert_allclose(sm.x_smooth, kfas[["alphahat_1", "alphahat_2"]][:10], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(sm.P_smooth.sum(axis=(1, 2)), kfas["sumV"][:10], rtol=1e-9)
+    # KFAS leaves out log(2 pi) / 2 for each of the two diffuse terms (y(0) and y(2)).
+    assert res.loglik == pytest.approx(-18.3036127435546 - np.log(2 * np.pi), rel=1e-12)
