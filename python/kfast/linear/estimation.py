@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, ClassVar, Optional, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -248,9 +248,88 @@ class EMResult:
     """Iterations made."""
     converged: bool
     """Whether the change of the log-likelihood fell below ``tol``."""
+    fitted: tuple = ()
+    """The names of the estimated parameters (``fit=``)."""
+    # (y, u) of the run, for standard_errors(); not a field (the results' fields are its outputs).
+    _data: ClassVar[tuple] = (None, None)
 
     def __repr__(self) -> str:
         return f"EMResult(n_iter={self.n_iter}, loglik={self.loglik[-1]:.6g}, converged={self.converged})"
+
+    def standard_errors(self) -> dict:
+        """Standard errors of the estimates from the observed information at the result.
+
+        EM gives no standard errors of its own. These are the square roots of the diagonal of
+        the inverse of minus the Hessian of the exact log-likelihood (central differences, as
+        in :func:`fit`) with respect to the free entries of the estimated parameters: every
+        entry of F, H and x0, the lower triangle of the symmetric Q, R and P0. At a maximum of
+        the likelihood this is the asymptotic standard error of maximum likelihood (EM
+        converges to the same point). A RuntimeWarning says when the information is not
+        positive definite (e.g. a variance at zero); the standard errors of unidentified
+        directions are then NaN.
+
+        Returns
+        -------
+        dict
+            {name: array of the parameter's shape}, for each name in ``fitted`` (symmetric
+            matrices have symmetric arrays).
+
+        Examples
+        --------
+        >>> model = kfast.LinearGaussian(F=0.8, H=1.0, Q=0.5, R=1.0)
+        >>> x, y = model.simulate(400, x0=0.0, P0=1.0, seed=2)
+        >>> res = model.em(y, x0=0.0, P0=1.0, n_iter=200, fit=("F", "Q", "R"), tol=1e-10)
+        >>> se = res.standard_errors()
+        >>> sorted(se), bool(0.0 < se["F"][0, 0] < 0.1)
+        (['F', 'Q', 'R'], True)
+        """
+        y, u = self._data
+        if y is None:
+            raise KfastError("standard_errors: this EMResult does not carry its data")
+        values = {"F": self.model.F, "H": self.model.H, "Q": self.model.Q, "R": self.model.R, "x0": self.x0, "P0": self.P0}
+        layout = [(name, np.asarray(values[name], dtype=float)) for name in self.fitted]
+        theta = np.concatenate([_free(name, a) for name, a in layout]) if layout else np.zeros(0)
+        if theta.size == 0:
+            return {}
+
+        def loglik(t: np.ndarray) -> float:
+            current = dict(values)
+            k = 0
+            for name, a in layout:
+                size = _free(name, a).size
+                current[name] = _unfree(name, a, t[k : k + size])
+                k += size
+            try:
+                m = LinearGaussian(current["F"], current["H"], current["Q"], current["R"], B=self.model.B, D=self.model.D)
+                return m.loglik(y, current["x0"], current["P0"], u=u)
+            except KfastError:
+                return -np.inf
+
+        _, se = _covariance(_hessian(loglik, theta))
+        out = {}
+        k = 0
+        for name, a in layout:
+            size = _free(name, a).size
+            out[name] = _unfree(name, a, se[k : k + size])
+            k += size
+        return out
+
+
+_SYMMETRIC = ("Q", "R", "P0")
+
+
+def _free(name: str, a: np.ndarray) -> np.ndarray:
+    """The free entries of a parameter: its lower triangle if symmetric, else all."""
+    return a[np.tril_indices(a.shape[0])] if name in _SYMMETRIC else a.ravel()
+
+
+def _unfree(name: str, like: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The parameter of ``like``'s shape with the free entries ``values`` (mirrored if symmetric)."""
+    if name not in _SYMMETRIC:
+        return values.reshape(like.shape)
+    out = np.zeros(like.shape)
+    out[np.tril_indices(like.shape[0])] = values
+    return out + np.tril(out, -1).T
 
 
 EM_PARAMETERS: tuple[EMParameter, ...] = ("F", "H", "Q", "R", "x0", "P0")
@@ -330,9 +409,17 @@ def em(
     final = LinearGaussian(F, H, Q, R, B=B, D=D)
     if progress:
         print(file=sys.stderr)
-    return EMResult(
-        model=final, x0=np.asarray(x0), P0=np.asarray(P0), loglik=np.array(history), n_iter=iterations, converged=converged
+    result = EMResult(
+        model=final,
+        x0=np.asarray(x0),
+        P0=np.asarray(P0),
+        loglik=np.array(history),
+        n_iter=iterations,
+        converged=converged,
+        fitted=tuple(fit),
     )
+    object.__setattr__(result, "_data", (y, u))
+    return result
 
 
 def _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit):
