@@ -48,21 +48,26 @@ def integer_lags(name: str, value: object) -> np.ndarray:
     return lags.astype(np.int64)
 
 
-def positive_real(name: str, value: object) -> float:
-    """A finite real number > 0: a Python or NumPy int or float, or a 0-d array (not a bool,
-    str, None, list or complex)."""
+def real_scalar(name: str, value: object, what: str) -> float:
+    """A real number (possibly inf or NaN: the caller checks its range): a Python or NumPy int
+    or float, or a 0-d array (not a bool, str, None, list or complex). ``what`` says in the
+    error what was expected, e.g. "a positive real number"."""
     if value is None or isinstance(value, (bool, np.bool_, str, bytes)):
-        raise KfastError(f"{name}: expected a positive real number, got {_short(value)}")
+        raise KfastError(f"{name}: expected {what}, got {_short(value)}")
     if isinstance(value, int):  # a Python int of any size: 10**400 is not a double
-        x = float(value) if abs(value) < 2**1000 else math.inf
-    else:
-        try:
-            arr = np.asarray(value)
-        except Exception:
-            raise KfastError(f"{name}: expected a positive real number, got {_short(value)}") from None
-        if arr.ndim != 0 or arr.dtype.kind not in "fiu":
-            raise KfastError(f"{name}: expected a positive real number, got {_short(value)}")
-        x = float(arr)
+        return float(value) if abs(value) < 2**1000 else (math.inf if value > 0 else -math.inf)
+    try:
+        arr = np.asarray(value)
+    except Exception:
+        raise KfastError(f"{name}: expected {what}, got {_short(value)}") from None
+    if arr.ndim != 0 or arr.dtype.kind not in "fiu":
+        raise KfastError(f"{name}: expected {what}, got {_short(value)}")
+    return float(arr)
+
+
+def positive_real(name: str, value: object) -> float:
+    """A finite real number > 0 (see :func:`real_scalar`)."""
+    x = real_scalar(name, value, "a positive real number")
     if not (math.isfinite(x) and x > 0):
         raise KfastError(f"{name}: must be a finite number > 0, got {_short(value)}")
     return x

@@ -21,6 +21,7 @@ import numpy as np
 from kfast import _kfast
 from kfast._args import index
 from kfast._arrays import finite_vector
+from kfast._numbers import real_scalar
 from kfast.linear.model import LinearGaussian
 
 __all__ = ["local_level", "local_linear_trend", "smooth_trend", "seasonal", "cycle", "arma", "combine"]
@@ -29,12 +30,7 @@ KfastError = _kfast.KfastError
 
 
 def _variance(name: str, value: object) -> float:
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        raise KfastError(f"{name}: expected a variance (a number >= 0), got {value!r}")
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise KfastError(f"{name}: expected a variance (a number >= 0), got {value!r}") from None
+    x = real_scalar(name, value, "a variance (a number >= 0)")
     if not (math.isfinite(x) and x >= 0):
         raise KfastError(f"{name}: must be a finite variance >= 0, got {value!r}")
     return x
@@ -181,12 +177,7 @@ def _block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
 
 
 def _finite(name: str, value: object) -> float:
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        raise KfastError(f"{name}: expected a real number, got {value!r}")
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise KfastError(f"{name}: expected a real number, got {value!r}") from None
+    x = real_scalar(name, value, "a real number")
     if not math.isfinite(x):
         raise KfastError(f"{name}: must be finite, got {value!r}")
     return x

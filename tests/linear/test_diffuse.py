@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from statsmodels.tsa.statespace import kalman_filter as sm_kf
 from statsmodels.tsa.statespace.initialization import Initialization
 
 import kfast
@@ -98,9 +97,12 @@ def _mixed_model(seed, m=2, correlated_R=False):
 
 
 def _statsmodels(model, y, x0, P0):
+    """statsmodels' smoother (its filter's output too) with the first three states diffuse."""
+    from statsmodels.tsa.statespace.kalman_smoother import KalmanSmoother
+
     T, m = y.shape
     n = model.n_states
-    ssm = sm_kf.KalmanFilter(k_endog=m, k_states=n, k_posdef=n)
+    ssm = KalmanSmoother(k_endog=m, k_states=n, k_posdef=n)
     ssm.bind(np.ascontiguousarray(y))
     ssm["design"], ssm["obs_cov"], ssm["transition"], ssm["state_cov"] = model.H, model.R, model.F, model.Q
     ssm["selection"] = np.eye(n)
@@ -108,7 +110,7 @@ def _statsmodels(model, y, x0, P0):
     init.set((0, 3), "diffuse")
     init.set((3, 5), "known", constant=x0[3:], stationary_cov=P0[3:, 3:])
     ssm.initialize(init)
-    return ssm.filter()
+    return ssm.smooth()
 
 
 @pytest.mark.parametrize("seed, missing, correlated_R", [(0, False, False), (1, True, False), (2, True, True), (3, False, True)])
@@ -162,29 +164,13 @@ def test_every_step_diffuse_and_bad_input():
 # -- the exact diffuse smoother ------------------------------------------------------------------
 
 
-def _statsmodels_smoother(model, y, x0, P0):
-    from statsmodels.tsa.statespace.kalman_smoother import KalmanSmoother
-
-    T, m = y.shape
-    n = model.n_states
-    ssm = KalmanSmoother(k_endog=m, k_states=n, k_posdef=n)
-    ssm.bind(np.ascontiguousarray(y))
-    ssm["design"], ssm["obs_cov"], ssm["transition"], ssm["state_cov"] = model.H, model.R, model.F, model.Q
-    ssm["selection"] = np.eye(n)
-    init = Initialization(n)
-    init.set((0, 3), "diffuse")
-    init.set((3, 5), "known", constant=x0[3:], stationary_cov=P0[3:, 3:])
-    ssm.initialize(init)
-    return ssm.smooth()
-
-
 @pytest.mark.parametrize("seed, missing, correlated_R", [(0, False, False), (1, True, False), (2, True, True)])
 def test_smoother_equals_statsmodels(seed, missing, correlated_R):
     model, y, x0, P0, P_inf = _mixed_model(seed, correlated_R=correlated_R)
     if missing:
         y[0, 1] = y[2] = y[7, 0] = np.nan
     sm = model.smooth(y, x0, P0, P0_inf=P_inf)
-    ref = _statsmodels_smoother(model, y, x0, P0)
+    ref = _statsmodels(model, y, x0, P0)
     np.testing.assert_allclose(sm.x_smooth, ref.smoothed_state.T, rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(sm.P_smooth, np.moveaxis(ref.smoothed_state_cov, -1, 0), rtol=1e-8, atol=1e-8)
     # statsmodels' smoothed_state_autocov[t] is Cov(x(t+1), x(t) | y); in the diffuse steps it is

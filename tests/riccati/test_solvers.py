@@ -187,7 +187,9 @@ def test_doubling_is_refined_on_ill_conditioned_problems(seed):
     sol = dare(a, b, q, r)
     assert dare_residual(a, b, q, r, None, None, sol["x"]) <= 1e-10
     assert sol["residual"] <= 1e-10
-    np.testing.assert_allclose(sol["x"], dare(a, b, q, r, method="newton")["x"], rtol=1e-8, atol=1e-8 * np.abs(sol["x"]).max())
+    # Residuals at rounding level pin X only to about 1e-7 relative here (X ~ 1e8 with r = 1e-6:
+    # methods and SciPy, whose residual is 1e-7, differ by that much).
+    np.testing.assert_allclose(sol["x"], dare(a, b, q, r, method="newton")["x"], rtol=1e-6, atol=1e-6 * np.abs(sol["x"]).max())
 
 
 def test_no_stabilizing_solution_raises():

@@ -16,6 +16,7 @@ import numpy as np
 from kfast import _kfast
 from kfast._args import index
 from kfast._arrays import as_float64
+from kfast._numbers import real_scalar
 
 if TYPE_CHECKING:
     from kfast.linear.model import FilterResult
@@ -178,12 +179,7 @@ def _normal_quantile(p: float) -> float:
 
 
 def _probability(name: str, value: object) -> float:
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        raise _kfast.KfastError(f"{name}: expected a number in (0, 1), got {value!r}")
-    try:
-        p = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise _kfast.KfastError(f"{name}: expected a number in (0, 1), got {value!r}") from None
+    p = real_scalar(name, value, "a number in (0, 1)")
     if not 0.0 < p < 1.0:
         raise _kfast.KfastError(f"{name}: must be in (0, 1), got {value!r}")
     return p

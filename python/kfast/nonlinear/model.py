@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike
 
 from kfast import _kfast
 from kfast._args import choice, index
-from kfast._numbers import positive_real
+from kfast._numbers import positive_real, real_scalar
 from kfast._arrays import as_float64, frozen_copy
 from kfast._typing import FilterOutputs, Form, Iteration, Keep, Resample, UkfForm
 from kfast.linear.model import FilterResult, SmootherResult, _column_if_1d, _output_names
@@ -566,12 +566,7 @@ def _bandwidth(value: object) -> Optional[float]:
 
 def _fraction(name: str, value: object) -> float:
     """A number in (0, 1]."""
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        raise _kfast.KfastError(f"{name}: expected a number in (0, 1], got {value!r}")
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise _kfast.KfastError(f"{name}: expected a number in (0, 1], got {value!r}") from None
+    number = real_scalar(name, value, "a number in (0, 1]")
     if not 0 < number <= 1:
         raise _kfast.KfastError(f"{name}: must be in (0, 1], got {value!r}")
     return number

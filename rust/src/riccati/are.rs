@@ -301,13 +301,18 @@ fn solve_dare_by(p: &Problem, r_inv: Option<&Mat<f64>>, method: DareMethod) -> R
         }
     };
     let solution = finish_dare(p, sym(&x), iterations, used)?;
-    if method != DareMethod::Doubling || solution.residual <= REFINE_ABOVE {
+    // The iteration and Newton are not the fast default: they are always polished.
+    if solution.residual == 0.0
+        || (method != DareMethod::Iteration && method != DareMethod::Newton && solution.residual <= REFINE_ABOVE)
+    {
         return Ok(solution);
     }
     // Doubling loses digits on ill-conditioned problems (e.g. r = 1e-6 with a singular a:
-    // relative residual 1e-3): Newton steps from its stabilizing solution restore them.
-    let refined = newton(p, to_mat(&solution.x, n), 3)
-        .and_then(|(x, more)| finish_dare(p, sym(&x), solution.iterations + more, used));
+    // relative residual 1e-3), the iteration stops at its convergence test and Newton at a
+    // Lyapunov solve's accuracy: Newton steps in correction form from the stabilizing
+    // solution restore them (the better of the two is kept).
+    let refined = polish(p, &to_mat(&solution.x, n), POLISH_STEPS)
+        .and_then(|x| finish_dare(p, sym(&x), solution.iterations + POLISH_STEPS, used));
     Ok(match refined {
         Ok(better) if better.residual < solution.residual => better,
         _ => solution,
@@ -699,6 +704,31 @@ fn newton_step(p: &Problem, k: &Mat<f64>) -> Result<Mat<f64>> {
     let next = solve_discrete_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&c), n)
         .map_err(|_| no_solution("a Newton step met a closed loop with eigenvalues λ_i λ_j = 1"))?;
     Ok(sym(&to_mat(&next, n)))
+}
+
+/// Newton steps of [`polish`] at most (it stops once the correction is at rounding level).
+const POLISH_STEPS: usize = 4;
+
+/// Newton–Hewer steps in correction form: X ← X + Δ with Δ solving A_c' Δ A_c − Δ + R(X) = 0,
+/// R(X) the Riccati residual and A_c = a − b K(X). The same step as [`newton_step`], but the
+/// Lyapunov solve's rounding is relative to the small Δ instead of to X, so the residual
+/// reaches rounding level (SciPy's benchmark tolerances).
+fn polish(p: &Problem, x: &Mat<f64>, steps: usize) -> Result<Mat<f64>> {
+    let n = p.a.nrows();
+    let mut x = x.clone();
+    for _ in 0..steps {
+        let k = dare_gain(p, &x).ok_or_else(|| no_solution("b'Xb + r is singular at a Newton step"))?;
+        let acl = &p.a - &p.b * &k;
+        let residual = riccati_step(p, &congruence(&x, &acl), &k) - &x;
+        let delta = solve_discrete_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&sym(&residual)), n)
+            .map_err(|_| no_solution("a Newton step met a closed loop with eigenvalues λ_i λ_j = 1"))?;
+        let delta = to_mat(&delta, n);
+        x = sym(&(&x + &delta));
+        if delta.norm_max() <= 8.0 * f64::EPSILON * x.norm_max() {
+            break;
+        }
+    }
+    Ok(x)
 }
 
 /// Newton–Hewer started from a gain K0 with a − b K0 stable instead of from an X0: the first
