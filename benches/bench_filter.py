@@ -254,7 +254,10 @@ def mk_kfast_smooth(y, form, outputs=None):
     return lambda: m.smooth(y, x0, P0, form=form, outputs=outputs)
 
 
+W1_OUT = ("x_filt", "P_filt")
 W2_OUT = ("x_smooth", "P_smooth")
+# The robust update forms (docs/algorithms.md, "Update forms"), benchmarked beside the covariance forms.
+ROBUST_FORMS = ("sqrt", "ud", "information", "sequential")
 
 
 def mk_kfast_loglik(y, form=None):
@@ -1067,6 +1070,9 @@ def main(argv=None):
             ("filterpy", mk_fp_filter, T_slow, slow + "; batch_filter(update_first=True), Joseph", "peer"),
             ("pykalman", mk_pk_filter, T_slow, slow, "peer"),
         ]
+        spec += [(f"kfast {f}, x_filt+P_filt", lambda yy, f=f: mk_kfast_filter(yy, f, W1_OUT), T,
+                  f"form=\"{f}\" (docs/algorithms.md, \"Update forms\"), the workload's outputs", "kfast")
+                 for f in ROBUST_FORMS]
         cs = build(spec, y, log)
         run_interleaved(cs, rounds, log=log)
         log("")
@@ -1124,6 +1130,8 @@ def main(argv=None):
              "kfast.set_deterministic(True): no fused multiply-adds", "kfast"),
             ("kfast loglik standard, deterministic", lambda yy: deterministic(mk_kfast_loglik)(yy, "standard"), T,
              "kfast.set_deterministic(True)", "kfast"),
+            *[(f"kfast loglik {f}", lambda yy, f=f: mk_kfast_loglik(yy, f), T,
+               f"LinearGaussian.loglik(form=\"{f}\")", "kfast") for f in ROBUST_FORMS],
             *c_rows(mk_c_loglik, T, [("", {}, "")]),
             ("statsmodels tuned", mk_sm_loglik_tuned, T, "univariate, no symmetrisation, loglike(conserve_memory=MEMORY_CONSERVE); " + sm_ss_note, "peer"),
             ("statsmodels tuned, no steady", lambda yy: mk_sm_loglik_tuned(yy, False), T,
@@ -1170,6 +1178,8 @@ def main(argv=None):
     if "W8" in todo:
         log("\n== W8: scaling in n (random stable, m = n/2; then a grid n = 1..12, 16, 32, 64 x m = 1, 2, 3) ==")
         results["W8"] = ("md", more.run_w8(max(3, rounds // 2), quick, log))
+        log("\n  -- W8 update forms: n = 4, 16, 64 (x_filt, P_filt) --")
+        results["W8"][1]["forms"] = more.run_w8_forms(max(3, rounds // 2), quick, log)
     if "MEM" in todo:
         log("\n== MEM: peak RSS of a W1 run in a fresh interpreter ==")
         results["MEM"] = ("md", more.run_mem(quick, log))
@@ -1269,6 +1279,12 @@ def write_md(info, results, quick, T, T_slow, T_sk, T_sp, rounds, sm_ss_note, lo
                              "ns/step (median over interleaved samples of all sizes); T = steps per call.")
                 lines.append("")
                 lines.append(bench_more.w8_grid_markdown(results[w][1]["grid"]))
+                if "forms" in results[w][1]:
+                    lines.append("")
+                    lines.append("Update forms (`form=`; docs/algorithms.md, \"Update forms\"), x_filt and P_filt, "
+                                 "same random models (m = n/2):")
+                    lines.append("")
+                    lines.append(bench_more.w8_forms_markdown(results[w][1]["forms"]))
             else:
                 lines.append(bench_more.mem_markdown(results[w][1]))
             lines.append("")

@@ -661,6 +661,48 @@ def w8_grid_markdown(grid):
 
 
 
+W8_FORM_NS = (4, 16, 64)
+W8_FORMS = ("joseph", "standard", "sqrt", "ud", "information", "sequential")
+
+
+def run_w8_forms(rounds, quick, log):
+    """Each update form at n = 4, 16, 64 (m = n/2; x_filt, P_filt), with the C loop."""
+    rows = []
+    outs = ("x_filt", "P_filt")
+    for n in W8_FORM_NS:
+        m = n // 2
+        T = w8_T(n, quick)
+        model = random_model(n, m)
+        y = simulate_model(*model[:4], T)
+        spec = [(f"kfast {f}", lambda yy, f=f: mk_kfast(model, yy, outputs=outs, form=f), T, "", "kfast")
+                for f in W8_FORMS]
+        spec.append((W8_C, lambda yy: mk_c(model, yy), T, "", "c"))
+        cs = bf.build(spec, y, lambda s: log(f"  n={n}: {s.strip()}"))
+        bf.run_interleaved(cs, rounds, log=log)
+        chk = check_vs_c(cs, model, y, lambda s: None)
+        row = {"n": n, "m": m, "T": T}
+        for c in cs:
+            row[c.name] = {"ns": c.ns_per_step(), "dP": chk.get(c.name, (None, None))[1]} if c.ok else {"error": c.error}
+        rows.append(row)
+        log(f"  n={n:3d} m={m:2d} T={T:6,d}  " + "  ".join(
+            f"{c.name}: {row[c.name]['ns']:,.0f} ns" if "ns" in row[c.name] else f"{c.name}: {row[c.name]['error']}"
+            for c in cs))
+    return rows
+
+
+def w8_forms_markdown(rows):
+    cols = [f"kfast {f}" for f in W8_FORMS] + [W8_C]
+    out = ["| n | m | T | " + " | ".join(f"{c} ns/step" for c in cols) + " | max\\|dP\\| of each form vs C |",
+           "|" + "---:|" * (3 + len(cols) + 1)]
+    for r in rows:
+        cells = [str(r["n"]), str(r["m"]), f"{r['T']:,}"]
+        cells += [bf.fmt_ns(r[c]["ns"]) if "ns" in r[c] else (r[c].get("error") or "-") for c in cols]
+        dps = [r[c]["dP"] for c in cols[:-1] if "ns" in r[c] and r[c].get("dP") is not None]
+        cells.append(f"{max(dps):.1e}" if dps else "n/a")
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
 def w8_markdown(rows):
     head = ("| n | m | T | flop/step | " + " | ".join(f"{c} ns/step (GFLOP/s)" for c in W8_COLS)
             + " | statsmodels / kfast | max\\|dP\\| kfast vs C |")

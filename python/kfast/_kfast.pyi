@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kfast.linear.model import LinearGaussian as _Model
-from kfast._typing import DareMethod, Form, Iteration, Keep, Resample, UkfForm
+from kfast._typing import DareMethod, Form, Iteration, Keep, Resample, UkfForm, UpdateForm
 
 # The functions and the compiled model's methods take C-contiguous float64 arrays (the
 # package converts array-likes first); the streaming objects take array-likes themselves.
@@ -109,7 +109,7 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         converge_tol: Optional[float] = None,
         outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
@@ -120,7 +120,7 @@ class LinearGaussian:
         P0: NDArray[np.float64],
         P0_inf: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         converge_tol: Optional[float] = None,
         outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
@@ -130,7 +130,7 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         converge_tol: Optional[float] = None,
     ) -> float: ...
 
@@ -140,7 +140,7 @@ class LinearGaussian:
         x0: NDArray[np.float64],
         P0: NDArray[np.float64],
         u: Optional[NDArray[np.float64]] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         outputs: Optional[Sequence[str]] = None,
     ) -> dict[str, Any]: ...
     def smooth_fixed_lag(

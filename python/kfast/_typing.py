@@ -5,11 +5,17 @@ from __future__ import annotations
 
 from typing import Iterable, Literal, Union
 
-__all__ = ["Form", "UkfForm", "Iteration", "Resample", "Keep", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
+__all__ = ["Form", "UpdateForm", "UkfForm", "Iteration", "Resample", "Keep", "DareMethod", "FilterOutput", "SmoothOutput", "FilterOutputs", "SmoothOutputs", "EMParameter"]
 
 Form = Literal["joseph", "standard"]
-UkfForm = Literal["standard", "sqrt"]
 """The covariance measurement update: Joseph's (I-KH)P(I-KH)' + KRK' or the standard P - KSK'."""
+
+UpdateForm = Literal["joseph", "standard", "sqrt", "ud", "information", "sequential"]
+"""The linear filter's forms: the covariance forms, and the square-root (Cholesky factor moved by
+orthogonal transformations), U-D (Bierman/Thornton), information (Y = P^-1) and sequential (one
+scalar component at a time) filters."""
+
+UkfForm = Literal["standard", "sqrt"]
 
 Iteration = Literal["book", "gauss-newton"]
 """How the iterated EKF relinearizes: Söderström's (9.12)-(9.17) or Gauss-Newton (Bell & Cathey)."""

@@ -415,7 +415,7 @@ fn batch_filter_matches_gaussian_conditioning_reference() {
     let u = u_3x2();
     for y in [y_3x2_full(), y_3x2_missing()] {
         let (x_filt, p_filt, x_next, p_next, gain, gain_pred, loglik_t) = reference_filter(&model, &y, &u, T3);
-        for form in [UpdateForm::Joseph, UpdateForm::Standard] {
+        for form in ALL_FORMS {
             let res = filter(
                 &model,
                 Series::new("y", &y, T3, 2).unwrap(),
@@ -436,6 +436,16 @@ fn batch_filter_matches_gaussian_conditioning_reference() {
         }
     }
 }
+
+/// Every update form: the covariance forms and the robust ones of `linear::filter::forms`.
+const ALL_FORMS: [UpdateForm; 6] = [
+    UpdateForm::Joseph,
+    UpdateForm::Standard,
+    UpdateForm::SquareRoot,
+    UpdateForm::UD,
+    UpdateForm::Information,
+    UpdateForm::Sequential,
+];
 
 // ---------------------------------------------------------------------------------------------
 // 4. Joseph and standard forms agree on a well-conditioned model

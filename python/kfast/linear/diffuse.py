@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Optional
 import numpy as np
 
 from kfast import _kfast
-from kfast._typing import Form
+from kfast._typing import UpdateForm
 
 if TYPE_CHECKING:
     from kfast.linear.model import LinearGaussian, SmootherResult
@@ -35,7 +35,7 @@ def diffuse_directions(P_inf: np.ndarray) -> np.ndarray:
     return V[:, keep] * np.sqrt(lam[keep])
 
 
-def smooth(model: "LinearGaussian", y: Any, x0: Any, P0: Any, P0_inf: Any, u: Any, form: Form, outputs: Optional[tuple]) -> "SmootherResult":
+def smooth(model: "LinearGaussian", y: Any, x0: Any, P0: Any, P0_inf: Any, u: Any, form: UpdateForm, outputs: Optional[tuple]) -> "SmootherResult":
     """The body of :meth:`LinearGaussian.smooth` with ``P0_inf`` (see there)."""
     from kfast.linear.model import SmootherResult
 

@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import choice, flag, index, tolerance
 from kfast._arrays import as_float64, frozen_copy
-from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs
+from kfast._typing import DareMethod, EMParameter, FilterOutputs, Form, SmoothOutputs, UpdateForm
 
 if TYPE_CHECKING:
     from kfast.linear.posterior import DisturbanceSmootherResult, PosteriorDraws
@@ -30,6 +30,8 @@ __all__ = [
 ]
 
 _FORMS = ("joseph", "standard")
+# The forms of filter, loglik and smooth (docs/algorithms.md, "Update forms").
+_UPDATE_FORMS = _FORMS + ("sqrt", "ud", "information", "sequential")
 _MATRICES = ("F", "H", "Q", "R", "B", "D", "N")
 
 
@@ -469,7 +471,7 @@ class LinearGaussian:
         x0: ArrayLike,
         P0: Optional[ArrayLike] = None,
         u: Optional[ArrayLike] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         steady_state: bool = False,
         converge_tol: Optional[float] = None,
         outputs: FilterOutputs = None,
@@ -489,9 +491,18 @@ class LinearGaussian:
             Prior covariance P(0|-1); required unless ``steady_state=True``.
         u : array_like, shape (T, k), optional
             Inputs, required when the model has B or D: u[t] enters x[t+1] via B and y[t] via D.
-        form : {"joseph", "standard"}
-            The covariance update: "joseph" (default), (I-KH)P(I-KH)' + KRK', stays positive
-            semidefinite under rounding; "standard", P - KSK' symmetrized, is cheaper.
+        form : {"joseph", "standard", "sqrt", "ud", "information", "sequential"}
+            The update form; all compute the same filter (docs/algorithms.md, "Update forms").
+            "joseph" (default), (I-KH)P(I-KH)' + KRK', stays positive semidefinite under
+            rounding; "standard", P - KSK' symmetrized, is cheaper. The robust forms take the
+            observed components one scalar at a time (decorrelated by the Cholesky factor of
+            their R when R is not diagonal) and remove N before the time update (Söderström
+            Lemma 6.4): "sqrt" moves a Cholesky factor of P by Givens and Householder
+            transformations and never forms P (Söderström Sec. 6.8.1); "ud" keeps
+            P = U D U' (Bierman's measurement update, Thornton's time update); "information"
+            keeps Y = P^-1 and Y x (needs P0, R and F invertible); "sequential" updates P one
+            scalar at a time, inverting no matrix. They form P, S and the gains only for the
+            outputs asked for; ``converge_tol`` and ``steady_state`` need a covariance form.
         steady_state : bool
             Run the constant-gain filter with the stationary gains of :meth:`steady_state` from
             the first step, O(n^2) per step (P0 is not used; constant models only). A missing value
@@ -578,9 +589,9 @@ class LinearGaussian:
         if P0_inf is not None:
             y_, x0_, P0_, u_ = args
             P_inf = self._prior(x0, P0_inf, ("x0", "P0_inf"))[1]
-            out = self._core.filter_diffuse(y_, x0_, P0_, P_inf, u=u_, form=_form(form), converge_tol=tol, outputs=names)
+            out = self._core.filter_diffuse(y_, x0_, P0_, P_inf, u=u_, form=_update_form(form), converge_tol=tol, outputs=names)
             return FilterResult(**out, model=self)
-        out = self._core.filter(*args, form=_form(form), converge_tol=tol, outputs=names)
+        out = self._core.filter(*args, form=_update_form(form), converge_tol=tol, outputs=names)
         return FilterResult(**out, model=self)
 
     def loglik(
@@ -589,7 +600,7 @@ class LinearGaussian:
         x0: ArrayLike,
         P0: ArrayLike,
         u: Optional[ArrayLike] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         converge_tol: Optional[float] = None,
         P0_inf: Optional[ArrayLike] = None,
     ) -> float:
@@ -619,7 +630,7 @@ class LinearGaussian:
         """
         if P0_inf is not None:
             return self.filter(y, x0, P0, u=u, form=form, converge_tol=converge_tol, outputs=(), P0_inf=P0_inf).loglik
-        return self._core.loglik(*self._data(y, x0, P0, u), form=_form(form), converge_tol=tolerance("converge_tol", converge_tol))
+        return self._core.loglik(*self._data(y, x0, P0, u), form=_update_form(form), converge_tol=tolerance("converge_tol", converge_tol))
 
     def steady_state(self, method: DareMethod = "doubling") -> "SteadyState":
         """The stationary Kalman filter of a constant model.
@@ -792,7 +803,7 @@ class LinearGaussian:
         x0: ArrayLike,
         P0: ArrayLike,
         u: Optional[ArrayLike] = None,
-        form: Form = "joseph",
+        form: UpdateForm = "joseph",
         outputs: SmoothOutputs = None,
         P0_inf: Optional[ArrayLike] = None,
     ) -> SmootherResult:
@@ -853,8 +864,8 @@ class LinearGaussian:
             from kfast.linear.diffuse import smooth
 
             names = _output_names(outputs)
-            return smooth(self, y, x0, P0, P0_inf, u, _form(form), None if names is None else tuple(names))
-        out = self._core.smooth(*self._data(y, x0, P0, u), form=_form(form), outputs=_output_names(outputs))
+            return smooth(self, y, x0, P0, P0_inf, u, _update_form(form), None if names is None else tuple(names))
+        out = self._core.smooth(*self._data(y, x0, P0, u), form=_update_form(form), outputs=_output_names(outputs))
         filt = FilterResult(**{k: out.pop(k, None) for k in _FILTER_FIELDS}, loglik=out.pop("loglik"), model=self)
         return SmootherResult(filter=filt, **out)
 
@@ -1287,3 +1298,7 @@ def _output_names(outputs) -> Optional[list[str]]:
 
 def _form(form: str) -> Form:
     return cast(Form, choice("form", form, _FORMS))
+
+
+def _update_form(form: str) -> UpdateForm:
+    return cast(UpdateForm, choice("form", form, _UPDATE_FORMS))

@@ -181,6 +181,37 @@ pub enum UpdateForm {
     Joseph,
     /// `P − K S K'`: cheaper, can lose definiteness when S is ill-conditioned.
     Standard,
+    /// The square-root (array) filter: a Cholesky factor of P moved by orthogonal
+    /// transformations, P never formed (Söderström Sec. 6.8.1; linear models only).
+    SquareRoot,
+    /// P = U D U' with Bierman's measurement update and Thornton's time update (Bierman
+    /// (1977); Söderström (6.115); linear models only).
+    UD,
+    /// The information filter on Y = P⁻¹, ŷ = P⁻¹ x̂ (linear models only; needs F and R
+    /// invertible).
+    Information,
+    /// P updated one decorrelated scalar component at a time, no matrix inverted (Söderström
+    /// Sec. 6.8.1; linear models only).
+    Sequential,
+}
+
+impl UpdateForm {
+    /// Whether this is one of the covariance forms (Joseph, standard) that every filter offers;
+    /// the others are the linear filter's update forms (`linear::filter::forms`).
+    pub fn is_covariance_form(self) -> bool {
+        matches!(self, UpdateForm::Joseph | UpdateForm::Standard)
+    }
+
+    /// An error unless this is a covariance form (`what`: the estimator that needs one).
+    pub(crate) fn require_covariance_form(self, what: &str) -> crate::error::Result<()> {
+        if self.is_covariance_form() {
+            return Ok(());
+        }
+        Err(crate::error::Error::arg(
+            "form",
+            format!("{what} offers the Joseph and standard forms only; the square-root, U-D, information and sequential forms are for filter, loglik and smooth"),
+        ))
+    }
 }
 
 /// What the model predicts about the `mo` observed components of y(t), row-major.

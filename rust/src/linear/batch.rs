@@ -33,6 +33,7 @@ pub fn filter_batch(
     out: BatchOutputs<'_>,
     threads: Option<usize>,
 ) -> Result<bool> {
+    form.require_covariance_form("filter_batch")?;
     let shared = shares_covariances(model, &batch);
     check_batch(model, &batch, &out, shared)?;
     // One choice of loops for the whole call, so that every series and the shared

@@ -236,6 +236,7 @@ pub(crate) struct Ekf {
 
 impl Ekf {
     pub fn new(n: usize, m: usize, x0: &[f64], p0: &[f64], options: EkfOptions) -> Result<Self> {
+        options.form.require_covariance_form("the extended Kalman filter")?;
         if options.second_order && options.iterations > 0 {
             return Err(Error::arg("order", "the second-order EKF is not iterated (iterations must be 0)"));
         }

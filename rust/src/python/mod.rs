@@ -21,7 +21,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 
 use crate::core::alloc::check_f64_arrays;
 use crate::error::Error;
@@ -111,22 +111,33 @@ fn index_arg(py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<u
     checked_arg(py, "index", (name, value))?.extract()
 }
 
-/// The `form=` argument (default Joseph), checked by `kfast._args.choice`.
+/// The update forms by their Python names.
+const FORMS: [(&str, UpdateForm); 6] = [
+    ("joseph", UpdateForm::Joseph),
+    ("standard", UpdateForm::Standard),
+    ("sqrt", UpdateForm::SquareRoot),
+    ("ud", UpdateForm::UD),
+    ("information", UpdateForm::Information),
+    ("sequential", UpdateForm::Sequential),
+];
+
+/// The `form=` argument (default Joseph), checked by `kfast._args.choice`; the estimators
+/// that offer only the covariance forms refuse the others themselves.
 fn form_arg(py: Python<'_>, value: Option<&Bound<'_, PyAny>>) -> PyResult<UpdateForm> {
     match value {
         None => Ok(UpdateForm::Joseph),
         Some(value) => {
-            parse_form(&checked_arg(py, "choice", ("form", value, ("joseph", "standard")))?.extract::<String>()?)
+            let names = PyTuple::new(py, FORMS.iter().map(|(name, _)| *name))?;
+            parse_form(&checked_arg(py, "choice", ("form", value, names))?.extract::<String>()?)
         }
     }
 }
 
 fn parse_form(form: &str) -> PyResult<UpdateForm> {
-    match form {
-        "joseph" => Ok(UpdateForm::Joseph),
-        "standard" => Ok(UpdateForm::Standard),
-        other => Err(KfastError::new_err(format!("form: expected \"joseph\" or \"standard\", got {other:?}"))),
-    }
+    FORMS.iter().find(|(name, _)| *name == form).map(|(_, f)| *f).ok_or_else(|| {
+        let names: Vec<&str> = FORMS.iter().map(|(name, _)| *name).collect();
+        KfastError::new_err(format!("form: expected one of {names:?}, got {form:?}"))
+    })
 }
 
 /// A 2-D float64 array as a [`Series`] (`arg` names it in errors).

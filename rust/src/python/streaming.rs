@@ -81,10 +81,7 @@ impl Origin {
 }
 
 fn form_name(form: UpdateForm) -> &'static str {
-    match form {
-        UpdateForm::Joseph => "joseph",
-        UpdateForm::Standard => "standard",
-    }
+    super::FORMS.iter().find(|(_, f)| *f == form).map_or("joseph", |(name, _)| name)
 }
 
 /// An optional vector kept in a buffer reused from step to step.

@@ -7,6 +7,7 @@
 //! The recursion is Söderström Lemma 6.1 / (6.24) (docs/algorithms.md, "Filter recursion").
 
 mod diffuse;
+mod forms;
 mod outputs;
 pub(crate) mod step;
 mod streaming;
@@ -34,7 +35,8 @@ use step::{all_observed, overflowed, Features};
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[non_exhaustive]
 pub struct FilterOptions {
-    /// Joseph (default) or standard covariance update.
+    /// The update form: Joseph (default), standard, or one of the robust forms (square-root,
+    /// U-D, information, sequential; `forms`).
     pub form: UpdateForm,
     /// Freeze P, S and the gains once ‖P(t+1|t) − P(t|t−1)‖_max ≤ tol · max(1, ‖P‖_max) at a
     /// fully observed step (like statsmodels' steady-state switch); a missing value resumes
@@ -233,6 +235,9 @@ impl Run<'_> {
     /// constant model without N or gain freezing, its matrices copied into local buffers and
     /// the branches for those compiled out (~7% of a step at n = 4), and everything else.
     pub(crate) fn filter<D: Dims>(&self, d: D, out: &mut FilterOutputs<'_>) -> Result<f64> {
+        if !self.form.is_covariance_form() {
+            return forms::filter(self, out);
+        }
         if self.model.steps().is_none() && self.model.at(0).n.is_none() && self.converge_tol.is_none() {
             return run_best!(self.kernel, d, |d| self.filter_plain(d, out));
         }

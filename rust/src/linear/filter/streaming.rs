@@ -37,6 +37,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`. The model may be owned, borrowed
     /// (`&LinearGaussian`) or shared (`Arc<LinearGaussian>`).
     pub fn new(model: M, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
+        form.require_covariance_form("the streaming KalmanFilter")?;
         let lg = model.borrow();
         check_prior(lg.n_states(), x0, p0)?;
         let ws = StreamWorkspace::new(lg.n_states(), lg.n_obs(), lg.n_inputs(), x0, p0);
@@ -224,6 +225,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         t: usize,
         loglik: LoglikSum,
     ) -> Result<Self> {
+        form.require_covariance_form("the streaming KalmanFilter")?;
         let lg = model.borrow();
         let (n, m, k, steps) = (lg.n_states(), lg.n_obs(), lg.n_inputs(), lg.steps());
         for (arg, values, len) in [("x_pred", x_pred, n), ("P_pred", p_pred, n * n)] {

@@ -154,6 +154,7 @@ pub fn smooth_fixed_lag_into(
     out: FixedLagOutputs<'_>,
 ) -> Result<()> {
     let FixedLagOptions { lag, form } = options;
+    form.require_covariance_form("the fixed-lag smoother")?;
     let FixedLagOutputs { x_smooth: x_out, p_smooth: p_out } = out;
     let steps = check_data(model, y, u, x0, p0)?;
     let (n, m) = (model.n_states(), model.n_obs());
@@ -259,6 +260,7 @@ pub fn smooth_fixed_point(
     t_point: usize,
     form: UpdateForm,
 ) -> Result<FixedPointResult> {
+    form.require_covariance_form("the fixed-point smoother")?;
     let steps = check_data(model, y, u, x0, p0)?;
     if t_point >= steps {
         return Err(Error::arg(

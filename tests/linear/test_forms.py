@@ -1,0 +1,242 @@
+"""The robust update forms (form="sqrt", "ud", "information", "sequential"): each equals the
+Joseph form and its own NumPy reference (python/kfast/reference/forms.py) on seeded random
+models with every option (time-varying matrices, missing data, N, inputs, diagonal or full R),
+and the square-root and U-D forms keep P positive definite on the classical ill-conditioned
+update where the standard form does not."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+import kfast
+from kfast.reference.forms import information_filter, sequential_filter, square_root_filter, ud_filter
+from modelgen import random_case
+
+FORMS = ["sqrt", "ud", "information", "sequential"]
+REFERENCES = {
+    "sqrt": square_root_filter,
+    "ud": ud_filter,
+    "information": information_filter,
+    "sequential": sequential_filter,
+}
+FIELDS = ["x_pred", "P_pred", "x_filt", "P_filt", "innov", "S", "K", "K_pred", "loglik_t", "x_next", "P_next"]
+
+# inputs, N, time-varying, missing pattern, diagonal R: every combination over the seeds.
+OPTIONS = list(itertools.product([False, True], [False, True], [False, True], ["none", "rows", "partial"], [False, True]))
+
+
+def case_for(seed):
+    inputs, correlated, time_varying, missing, diagonal = OPTIONS[seed % len(OPTIONS)]
+    rng = np.random.default_rng(5000 + seed)
+    # n up to 14: compile-time sizes (n <= 12) and run-time ones.
+    n, m = int(rng.integers(1, 15)), int(rng.integers(1, 6))
+    case = random_case(seed, n, m, inputs=inputs, correlated=correlated, time_varying=time_varying, missing=missing)
+    if diagonal:
+        # diag(R) + lambda_max(R) I >= R keeps the joint covariance with N positive semidefinite.
+        R = case.model["R"]
+        lam = np.linalg.eigvalsh(R)[..., -1]
+        diag = np.einsum("...ii->...i", R)
+        case.model["R"] = np.apply_along_axis(np.diag, -1, diag) + lam[..., None, None] * np.eye(m)
+        # Data from the changed model are not needed: any y is data.
+    case.info["diagonal_R"] = diagonal
+    return case
+
+
+def f_tilde_condition(case):
+    """The largest condition number of F - N R^-1 H over the steps (F without N): the
+    information filter maps Y through its inverse, so its accuracy scales with it."""
+    F, H, R = (np.asarray(case.model[k]) for k in "FHR")
+    if "N" in case.model:
+        N = np.asarray(case.model["N"])
+        F = F - np.linalg.solve(R, N.swapaxes(-1, -2)).swapaxes(-1, -2) @ H
+    return float(np.max(np.linalg.cond(F)))
+
+
+def information_seeds(per_option=2, max_condition=100.0):
+    """The information form's cases: for each combination of options, the first seeds whose
+    F - N R^-1 H has a condition number below 100 (beyond, the form agrees with the Joseph form
+    to about 1e-13 times that number)."""
+    seeds = []
+    for option in range(len(OPTIONS)):
+        found = (s for s in range(option, 100 * len(OPTIONS), len(OPTIONS)) if f_tilde_condition(case_for(s)) < max_condition)
+        seeds += [next(found) for _ in range(per_option)]
+    return seeds
+
+
+INFORMATION_SEEDS = information_seeds()
+
+
+def assert_close(got, want, name, rtol=1e-10):
+    got, want = np.asarray(got), np.asarray(want)
+    scale = max(1.0, float(np.nanmax(np.abs(want)))) if want.size else 1.0
+    np.testing.assert_allclose(got, want, rtol=rtol, atol=rtol * scale, err_msg=name)
+
+
+@pytest.mark.parametrize("seeds", [range(96), INFORMATION_SEEDS])
+def test_options_are_all_covered(seeds):
+    assert len(seeds) == 96
+    assert {tuple(OPTIONS[s % len(OPTIONS)]) for s in seeds} == set(OPTIONS)
+    sizes = {case_for(s).info["n"] for s in seeds}
+    assert max(sizes) > 12 and min(sizes) == 1 and len(sizes) >= 12
+
+
+CASES = [(form, seed) for form in FORMS for seed in (INFORMATION_SEEDS if form == "information" else range(96))]
+
+
+@pytest.mark.parametrize(("form", "seed"), CASES)
+def test_form_equals_joseph_and_its_reference(form, seed):
+    case = case_for(seed)
+    model = kfast.LinearGaussian(**case.model)
+    res = model.filter(case.y, case.x0, case.P0, u=case.u, form=form)
+    joseph = model.filter(case.y, case.x0, case.P0, u=case.u)
+    ref = REFERENCES[form](**case.model, y=case.y, x0=case.x0, P0=case.P0, u=case.u)
+    for name in FIELDS:
+        assert_close(getattr(res, name), getattr(joseph, name), f"{form} vs joseph: {name} {case.info}")
+        assert_close(getattr(res, name), ref[name], f"{form} vs reference: {name} {case.info}")
+    assert res.loglik == pytest.approx(joseph.loglik, rel=1e-10)
+    assert model.loglik(case.y, case.x0, case.P0, u=case.u, form=form) == pytest.approx(res.loglik, rel=1e-12)
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_outputs_subset_gives_the_same_numbers(form):
+    case = case_for(7)
+    model = kfast.LinearGaussian(**case.model)
+    full = model.filter(case.y, case.x0, case.P0, u=case.u, form=form)
+    part = model.filter(case.y, case.x0, case.P0, u=case.u, form=form, outputs=("x_filt", "loglik_t"))
+    np.testing.assert_array_equal(part.x_filt, full.x_filt)
+    np.testing.assert_array_equal(part.loglik_t, full.loglik_t)
+    assert part.P_filt is None and part.loglik == full.loglik
+
+
+@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("seed", [1, 2, 13, 46])
+def test_smoother_with_each_form(form, seed):
+    case = case_for(seed)
+    model = kfast.LinearGaussian(**case.model)
+    res = model.smooth(case.y, case.x0, case.P0, u=case.u, form=form)
+    joseph = model.smooth(case.y, case.x0, case.P0, u=case.u)
+    for name in ["x_smooth", "P_smooth", "P_lag1"]:
+        assert_close(getattr(res, name), getattr(joseph, name), f"{form}: {name} {case.info}")
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_exact_diffuse_start_then_each_form(form):
+    trend = kfast.models.local_linear_trend(0.5, 0.1, irregular=1.0)
+    y = np.sin(np.arange(40) / 5.0) + np.arange(40) * 0.1
+    y[[3, 17]] = np.nan
+    res = trend.filter(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2), form=form)
+    joseph = trend.filter(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2))
+    assert res.n_diffuse == joseph.n_diffuse == 2
+    for name in FIELDS:
+        assert_close(getattr(res, name), getattr(joseph, name), f"{form}: {name}")
+
+
+def ill_conditioned(d):
+    """The classical example (Grewal & Andrews' roundoff example after Dyer & McReynolds):
+    P0 = I, two nearly collinear measurements H = [[1, 1, 1], [1, 1, 1 + d]] with R = d^2 I."""
+    model = kfast.LinearGaussian(F=np.eye(3), H=[[1.0, 1.0, 1.0], [1.0, 1.0, 1.0 + d]], Q=np.zeros((3, 3)), R=d**2 * np.eye(2))
+    return model, np.array([[1.0, 1.0]]), np.zeros(3), np.eye(3)
+
+
+def exact_posterior(d):
+    """P(0|0) of the example computed at 60 digits (mpmath)."""
+    import mpmath
+
+    with mpmath.workdps(60):
+        dm = mpmath.mpf(d)
+        H = mpmath.matrix([[1, 1, 1], [1, 1, 1 + dm]])
+        P = mpmath.eye(3)
+        S = H * P * H.T + dm**2 * mpmath.eye(2)
+        return np.array((P - P * H.T * S**-1 * H * P).tolist(), dtype=float)
+
+
+def test_standard_form_loses_definiteness_where_the_factored_forms_do_not():
+    d = 3e-6
+    model, y, x0, P0 = ill_conditioned(d)
+    smallest = np.linalg.eigvalsh(exact_posterior(d))[0]
+    assert smallest == pytest.approx(1.5e-12, rel=0.01)  # positive definite, barely
+    assert np.linalg.eigvalsh(model.filter(y, x0, P0, form="standard").P_filt[0])[0] < 0
+    for form in ["sqrt", "ud"]:
+        P = model.filter(y, x0, P0, form=form).P_filt[0]
+        assert np.linalg.eigvalsh(P)[0] == pytest.approx(smallest, rel=0.01), form
+
+
+@pytest.mark.parametrize("form", ["sqrt", "ud"])
+def test_factored_forms_work_where_s_is_singular_in_double_precision(form):
+    """With d^2 below the machine epsilon S = H P H' + R is singular to working precision: the
+    covariance forms refuse it, the scalar updates of the factored forms do not need it."""
+    d = 1e-9
+    model, y, x0, P0 = ill_conditioned(d)
+    with pytest.raises(kfast.InnovationCovarianceError):
+        model.filter(y, x0, P0, form="standard")
+    P = model.filter(y, x0, P0, form=form).P_filt[0]
+    np.testing.assert_allclose(P, exact_posterior(d), atol=1e-8)
+    assert np.linalg.eigvalsh(P)[0] > -4 * np.finfo(float).eps * np.abs(P).max()
+
+
+def test_information_form_handles_many_measurements_without_forming_s():
+    """The information form adds H' R^-1 H: a 50-component measurement of a 2-state model."""
+    rng = np.random.default_rng(3)
+    H = rng.standard_normal((50, 2))
+    model = kfast.LinearGaussian(F=[[1.0, 1.0], [0.0, 1.0]], H=H, Q=0.01 * np.eye(2), R=np.eye(50))
+    y = rng.standard_normal((20, 50))
+    info = model.filter(y, np.zeros(2), np.eye(2), form="information")
+    joseph = model.filter(y, np.zeros(2), np.eye(2))
+    assert_close(info.x_filt, joseph.x_filt, "x_filt")
+    assert info.loglik == pytest.approx(joseph.loglik, rel=1e-10)
+
+
+# -- refusals --------------------------------------------------------------------------------
+
+
+def test_information_form_needs_invertible_f_and_p0_and_r():
+    y = np.ones((4, 1))
+    singular_f = kfast.LinearGaussian(F=[[1.0, 1.0], [1.0, 1.0]], H=[[1.0, 0.0]], Q=np.eye(2), R=1.0)
+    with pytest.raises(ValueError, match=r"F.*step 0.*invertible"):
+        singular_f.filter(y, np.zeros(2), np.eye(2), form="information")
+    model = kfast.LinearGaussian(F=np.eye(2), H=[[1.0, 0.0]], Q=np.eye(2), R=1.0)
+    with pytest.raises(ValueError, match=r"P0.*positive definite.*P0_inf"):
+        model.filter(y, np.zeros(2), np.diag([1.0, 0.0]), form="information")
+    exact = kfast.LinearGaussian(F=np.eye(2), H=[[1.0, 0.0]], Q=np.eye(2), R=0.0)
+    with pytest.raises(ValueError, match=r"R.*step 0.*positive definite"):
+        exact.filter(y, np.zeros(2), np.eye(2), form="information")
+
+
+@pytest.mark.parametrize("form", ["sqrt", "ud", "sequential"])
+def test_exact_measurements_are_fine_in_the_scalar_forms(form):
+    """R = 0 (an exact measurement) with H P H' > 0: the scalar forms need no R^-1."""
+    model = kfast.LinearGaussian(F=[[1.0, 1.0], [0.0, 1.0]], H=[[1.0, 0.0]], Q=0.1 * np.eye(2), R=0.0)
+    y = np.cumsum(np.ones((15, 1)), axis=0)
+    res = model.filter(y, np.zeros(2), np.eye(2), form=form)
+    joseph = model.filter(y, np.zeros(2), np.eye(2))
+    assert_close(res.x_filt, joseph.x_filt, "x_filt")
+    assert_close(res.P_filt, joseph.P_filt, "P_filt", rtol=1e-9)
+    assert res.loglik == pytest.approx(joseph.loglik, rel=1e-10)
+
+
+def test_singular_full_r_is_refused_by_name():
+    model = kfast.LinearGaussian(F=np.eye(2), H=np.eye(2), Q=np.eye(2), R=np.ones((2, 2)))
+    with pytest.raises(ValueError, match=r"R.*step 0.*positive definite"):
+        model.filter(np.ones((3, 2)), np.zeros(2), np.eye(2), form="sequential")
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_covariance_form_options_are_refused(form):
+    model = kfast.LinearGaussian(F=0.9, H=1.0, Q=1.0, R=1.0)
+    with pytest.raises(ValueError, match="converge_tol"):
+        model.filter(np.ones(5), 0.0, 1.0, form=form, converge_tol=1e-9)
+    with pytest.raises(ValueError, match="form"):
+        kfast.KalmanFilter(model, 0.0, 1.0, form=form)
+    with pytest.raises(ValueError, match="form"):
+        model.smooth_fixed_lag(np.ones(5), 0.0, 1.0, lag=2, form=form)
+    with pytest.raises(ValueError, match="form"):
+        kfast.filter_batch(model, np.ones((3, 5, 1)), 0.0, 1.0, form=form)
+
+
+def test_unknown_form_lists_the_choices():
+    model = kfast.LinearGaussian(F=0.9, H=1.0, Q=1.0, R=1.0)
+    with pytest.raises(ValueError, match="sequential"):
+        model.filter(np.ones(5), 0.0, 1.0, form="cholesky")
