@@ -76,7 +76,7 @@ def filter_batch(
     u: Optional[NDArray[np.float64]] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
-    form: Form = "joseph",
+    form: UpdateForm = "joseph",
 ) -> dict[str, Any]: ...
 def discretize(
     A: NDArray[np.float64], Qc: NDArray[np.float64], dt: NDArray[np.float64], B: Optional[NDArray[np.float64]] = None

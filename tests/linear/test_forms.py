@@ -111,8 +111,10 @@ def test_outputs_subset_gives_the_same_numbers(form):
     assert part.P_filt is None and part.loglik == full.loglik
 
 
-@pytest.mark.parametrize("form", FORMS)
-@pytest.mark.parametrize("seed", [1, 2, 13, 46])
+@pytest.mark.parametrize(
+    ("form", "seed"),
+    [(form, seed) for form in FORMS for seed in [1, 2, 13, 46]] + [("sqrt", seed) for seed in range(48)],
+)
 def test_smoother_with_each_form(form, seed):
     case = case_for(seed)
     model = kfast.LinearGaussian(**case.model)
@@ -120,6 +122,27 @@ def test_smoother_with_each_form(form, seed):
     joseph = model.smooth(case.y, case.x0, case.P0, u=case.u)
     for name in ["x_smooth", "P_smooth", "P_lag1"]:
         assert_close(getattr(res, name), getattr(joseph, name), f"{form}: {name} {case.info}")
+
+
+def test_square_root_smoother_with_singular_predicted_covariance():
+    """Q = 0 and a singular F make P(t+1|t) singular: the square-root smoother takes those
+    steps' gain from the pseudo-inverse, like the covariance-form smoother."""
+    model = kfast.LinearGaussian(F=[[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]], H=[[1.0, 0.0, 1.0]], Q=np.zeros((3, 3)), R=0.5)
+    y = np.sin(np.arange(12.0))[:, None]
+    res = model.smooth(y, np.zeros(3), np.eye(3), form="sqrt")
+    joseph = model.smooth(y, np.zeros(3), np.eye(3))
+    for name in ["x_smooth", "P_smooth", "P_lag1"]:
+        assert_close(getattr(res, name), getattr(joseph, name), name)
+
+
+def test_square_root_smoother_outputs_subset():
+    case = case_for(21)
+    model = kfast.LinearGaussian(**case.model)
+    full = model.smooth(case.y, case.x0, case.P0, u=case.u, form="sqrt")
+    part = model.smooth(case.y, case.x0, case.P0, u=case.u, form="sqrt", outputs=("x_smooth", "x_filt"))
+    np.testing.assert_array_equal(part.x_smooth, full.x_smooth)
+    np.testing.assert_array_equal(part.filter.x_filt, full.filter.x_filt)
+    assert part.P_smooth is None
 
 
 @pytest.mark.parametrize("form", FORMS)
@@ -232,8 +255,21 @@ def test_covariance_form_options_are_refused(form):
         kfast.KalmanFilter(model, 0.0, 1.0, form=form)
     with pytest.raises(ValueError, match="form"):
         model.smooth_fixed_lag(np.ones(5), 0.0, 1.0, lag=2, form=form)
-    with pytest.raises(ValueError, match="form"):
-        kfast.filter_batch(model, np.ones((3, 5, 1)), 0.0, 1.0, form=form)
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_filter_batch_runs_each_series_in_the_form(form):
+    case = case_for(9)
+    model = kfast.LinearGaussian(**case.model)
+    rng = np.random.default_rng(1)
+    Y = case.y[None] + rng.standard_normal((4,) + case.y.shape)
+    res = kfast.filter_batch(model, Y, case.x0, case.P0, u=case.u, form=form)
+    assert not res.shared_covariance
+    for b in range(4):
+        one = model.filter(Y[b], case.x0, case.P0, u=case.u, form=form)
+        np.testing.assert_array_equal(res.x_filt[b], one.x_filt)
+        np.testing.assert_array_equal(res.P_filt[b], one.P_filt)
+        assert res.loglik[b] == one.loglik
 
 
 def test_unknown_form_lists_the_choices():

@@ -11,8 +11,8 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import flag, index
 from kfast._arrays import as_float64
-from kfast.linear.model import LinearGaussian, _form
-from kfast._typing import Form
+from kfast.linear.model import LinearGaussian, _update_form
+from kfast._typing import UpdateForm
 
 __all__ = ["filter_batch", "BatchResult"]
 
@@ -45,7 +45,7 @@ def filter_batch(
     u: Optional[ArrayLike] = None,
     return_covs: bool = True,
     threads: Optional[int] = None,
-    form: Form = "joseph",
+    form: UpdateForm = "joseph",
 ) -> BatchResult:
     """Kalman-filter many independent series through one model, in parallel.
 
@@ -65,8 +65,9 @@ def filter_batch(
         Whether to return P(t|t).
     threads : int, optional
         Number of threads (default: all cores); never more than the series or the cores.
-    form : {"joseph", "standard"}
-        The covariance update, as in :meth:`LinearGaussian.filter`.
+    form : {"joseph", "standard", "sqrt", "ud", "information", "sequential"}
+        The update form, as in :meth:`LinearGaussian.filter` (the robust forms filter each
+        series alone: no shared covariance recursion).
 
     Returns
     -------
@@ -102,7 +103,7 @@ def filter_batch(
         raise _kfast.KfastError(f"model: expected a kfast.LinearGaussian, got {type(model).__name__}")
     Y, x0, P0, u, threads = batch_arguments(model.n_states, model.n_obs, Y, x0, P0, u, threads)
     return_covs = flag("return_covs", return_covs)
-    out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_form(form))
+    out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_update_form(form))
     P = out.get("P_filt")
     if P is not None and out["shared"]:
         P = np.broadcast_to(P, (Y.shape[0],) + P.shape)

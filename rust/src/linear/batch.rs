@@ -17,10 +17,11 @@ use crate::error::Result;
 use crate::linear::filter::{check_data, check_series, FilterOutputs, Run, UpdateForm, Workspace};
 use crate::linear::model::LinearGaussian;
 
-/// Whether the covariance recursion can be shared: no missing value and one prior covariance.
-pub fn shares_covariances(model: &LinearGaussian, batch: &Batch<'_>) -> bool {
+/// Whether the covariance recursion can be shared: a covariance form (Joseph or standard), no
+/// missing value and one prior covariance. The robust forms filter each series alone.
+pub fn shares_covariances(model: &LinearGaussian, batch: &Batch<'_>, form: UpdateForm) -> bool {
     let n = model.n_states();
-    batch.p0.len() == n * n && !batch.y.iter().any(|v| v.is_nan())
+    form.is_covariance_form() && batch.p0.len() == n * n && !batch.y.iter().any(|v| v.is_nan())
 }
 
 /// Filters every series of `batch` with the covariance update `form` (in parallel on `threads` threads, all cores when `None`;
@@ -33,8 +34,7 @@ pub fn filter_batch(
     out: BatchOutputs<'_>,
     threads: Option<usize>,
 ) -> Result<bool> {
-    form.require_covariance_form("filter_batch")?;
-    let shared = shares_covariances(model, &batch);
+    let shared = shares_covariances(model, &batch, form);
     check_batch(model, &batch, &out, shared)?;
     // One choice of loops for the whole call, so that every series and the shared
     // covariance recursion compute with the same arithmetic.

@@ -401,7 +401,7 @@ pub(super) fn filter_batch<'py>(
         None => (None, false),
     };
     let batch = crate::Batch { y: yv, series: bs, steps, u: uv, u_shared, x0: x0v, p0: p0v };
-    let shared = crate::linear::batch::shares_covariances(&model, &batch);
+    let shared = crate::linear::batch::shares_covariances(&model, &batch, form);
     let covs = return_covs.then(|| if shared { vec![steps, n, n] } else { vec![bs, steps, n, n] });
     let (dict, shared) =
         run_batch(py, [bs, steps, n], covs, |out| crate::filter_batch(&model, batch, form, out, threads))?;

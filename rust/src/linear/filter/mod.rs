@@ -7,7 +7,7 @@
 //! The recursion is Söderström Lemma 6.1 / (6.24) (docs/algorithms.md, "Filter recursion").
 
 mod diffuse;
-mod forms;
+pub(crate) mod forms;
 mod outputs;
 pub(crate) mod step;
 mod streaming;
@@ -152,6 +152,39 @@ pub fn filter_diffuse_into(
     };
     let rest = with_dims!(n, m, |d| run.filter(d, &mut out))?;
     Ok((start.loglik + rest, start.steps))
+}
+
+/// The RTS smoother in square-root form after the square-root filter (`forms`): the filter's
+/// outputs given in `filt`, the smoother's in `smooth` (sizes checked by the caller); returns
+/// the log-likelihood.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn smooth_square_root_into(
+    model: &LinearGaussian,
+    y: Series<'_>,
+    u: Option<Series<'_>>,
+    x0: &[f64],
+    p0: &[f64],
+    mut filt: FilterOutputs<'_>,
+    x_smooth: Option<&mut [f64]>,
+    p_smooth: Option<&mut [f64]>,
+    p_lag1: Option<&mut [f64]>,
+) -> Result<f64> {
+    let (n, m) = (model.n_states(), model.n_obs());
+    let steps = check_data(model, y, u, x0, p0)?;
+    filt.check_sizes(steps, n, m)?;
+    let (mut own_x, mut own_xp) = (Vec::new(), Vec::new());
+    let x_smooth = x_smooth.unwrap_or_else(|| {
+        own_x.resize(steps * n, 0.0);
+        &mut own_x
+    });
+    let x_pred = filt.x_pred.take().unwrap_or_else(|| {
+        own_xp.resize(steps * n, 0.0);
+        &mut own_xp
+    });
+    let smooth = forms::smoother::SquareRootSmootherOutputs { x_filt: filt.x_filt.take(), p_smooth, p_lag1 };
+    let mut forward = FilterOutputs { x_pred: Some(x_pred), x_filt: Some(x_smooth), ..filt };
+    let run = Run { model, y, u, x0, p0, form: UpdateForm::SquareRoot, converge_tol: None, kernel: kernel(), start: 0 };
+    forms::smooth_square_root(&run, &mut forward, smooth)
 }
 
 /// The log-likelihood `Σ_t log p(y(t) | y(0..t−1))` alone (Söderström (6.142)), without

@@ -19,6 +19,7 @@ use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::filter::{filter_into, FilterOutputs, FilterResult, UpdateForm};
 use crate::linear::model::LinearGaussian;
+pub(crate) use rts::{pseudo_inverse_failed, solve_psd};
 use rts::{rts_in_place, Priors};
 
 /// The RTS smoother's results with the filter's.
@@ -93,6 +94,19 @@ pub fn smooth_into(
         if let Some(got) = buf.as_ref().map(|b| b.len()).filter(|&got| got != want) {
             return Err(Error::arg(arg, format!("output buffer has {got} entries, needs {want}")));
         }
+    }
+    if form == UpdateForm::SquareRoot {
+        return crate::linear::filter::smooth_square_root_into(
+            model,
+            y,
+            u,
+            x0,
+            p0,
+            filt,
+            out.x_smooth,
+            out.p_smooth,
+            out.p_lag1,
+        );
     }
     let mut own: [Vec<f64>; 5] = Default::default();
     let [own_x, own_p, own_xp, own_pp, own_k] = &mut own;

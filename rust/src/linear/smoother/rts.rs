@@ -282,7 +282,7 @@ impl Backward<'_> {
 
 /// The error for a smoother gain at step `t` that could not be computed.
 #[cold]
-fn pseudo_inverse_failed(problem: String, t: usize) -> Error {
+pub(crate) fn pseudo_inverse_failed(problem: String, t: usize) -> Error {
     Error::arg("P_pred", problem).at_step(Some(t + 1))
 }
 
@@ -294,7 +294,12 @@ fn pseudo_inverse_failed(problem: String, t: usize) -> Error {
 /// errors of B outside that range into an error of order one (issue 9: the WPI AR(3) model
 /// with R = 0, whose P(1|0) computed in Joseph form had a pivot of 2e-32).
 #[inline(always)]
-fn solve_psd<D: Dims>(a: &[f64], b: &mut [f64], factor: &mut [f64], n: usize) -> std::result::Result<(), String> {
+pub(crate) fn solve_psd<D: Dims>(
+    a: &[f64],
+    b: &mut [f64],
+    factor: &mut [f64],
+    n: usize,
+) -> std::result::Result<(), String> {
     if factor_psd::<D>(a, factor, n) {
         ldl_solve::<D>(factor, b, n, n);
         return Ok(());

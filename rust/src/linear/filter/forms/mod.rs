@@ -20,10 +20,50 @@
 //! The loops are compiled for state sizes n ≤ 12 as compile-time constants (the measurement
 //! size does not matter to a scalar update), each in its size's codegen unit (`core::home`).
 
+/// Evaluates `$body` with `$d` bound to the state size n as a compile-time constant for
+/// n ≤ 12 (`Fixed<n, 1>`: the measurement size is not part of a scalar update's sizes), else
+/// to run-time sizes.
+macro_rules! with_state_dims {
+    ($n:expr, |$d:ident| $body:expr) => {{
+        match $n {
+            1 => with_state_dims!(@fixed 1, $d, $body),
+            2 => with_state_dims!(@fixed 2, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            3 => with_state_dims!(@fixed 3, $d, $body),
+            4 => with_state_dims!(@fixed 4, $d, $body),
+            5 => with_state_dims!(@fixed 5, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            6 => with_state_dims!(@fixed 6, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            7 => with_state_dims!(@fixed 7, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            8 => with_state_dims!(@fixed 8, $d, $body),
+            9 => with_state_dims!(@fixed 9, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            10 => with_state_dims!(@fixed 10, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            11 => with_state_dims!(@fixed 11, $d, $body),
+            #[cfg(not(kfast_dev_sizes))]
+            12 => with_state_dims!(@fixed 12, $d, $body),
+            n => {
+                let $d = Dyn { n, m: 1 };
+                $body
+            }
+        }
+    }};
+    (@fixed $n:literal, $d:ident, $body:expr) => {{
+        let $d = Fixed::<$n, 1>;
+        $body
+    }};
+}
+
 mod information;
 mod sequential;
+pub(crate) mod smoother;
 mod sqrt;
 mod ud;
+
+pub(crate) use smoother::smooth_square_root;
 
 use super::outputs::FilterOutputs;
 use super::step::overflowed;
@@ -49,6 +89,11 @@ trait Recursion<D: Dims>: Sized {
     /// The current covariance, formed from the form's factors into `p` (n × n).
     fn covariance(&self, p: &mut [f64]);
 
+    /// The lower triangular factor S of P = S S', for the forms that keep one.
+    fn square_root(&self) -> Option<&[f64]> {
+        None
+    }
+
     /// The measurement update with the prepared components; returns the step's
     /// log-likelihood term without the decorrelation's −log det L.
     fn update(&mut self, meas: &Measurement, t: usize) -> Result<f64>;
@@ -65,43 +110,45 @@ trait Recursion<D: Dims>: Sized {
 /// Runs the filter of `run.form` (one of the four forms here) from `run.start`; returns the
 /// log-likelihood.
 pub(crate) fn filter(run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> {
-    let n = run.model.n_states();
     if run.converge_tol.is_some() {
         return Err(Error::arg("converge_tol", "gain freezing is only for form=\"joseph\" or \"standard\""));
     }
-    macro_rules! fixed {
-        ($($size:literal),*) => {
-            match n {
-                $( $size => by_form(Fixed::<$size, 1>, run, out), )*
-                _ => by_form(Dyn { n, m: 1 }, run, out),
-            }
-        };
-    }
-    #[cfg(not(kfast_dev_sizes))]
-    return fixed!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12);
-    #[cfg(kfast_dev_sizes)]
-    return fixed!(1, 2, 4, 5, 9);
+    with_state_dims!(run.model.n_states(), |d| by_form(d, run, out))
 }
 
 fn by_form<D: Dims>(d: D, run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> {
     // Each loop in a function of the size's codegen unit (`core::home`).
     match run.form {
-        UpdateForm::Sequential => D::Home::run_baseline(|| drive::<D, sequential::Sequential<D>>(d, run, out)),
-        UpdateForm::SquareRoot => D::Home::run_baseline(|| drive::<D, sqrt::SquareRoot<D>>(d, run, out)),
-        UpdateForm::UD => D::Home::run_baseline(|| drive::<D, ud::UD<D>>(d, run, out)),
-        UpdateForm::Information => D::Home::run_baseline(|| drive::<D, information::Information<D>>(d, run, out)),
+        UpdateForm::Sequential => D::Home::run_baseline(|| drive::<D, sequential::Sequential<D>>(d, run, out, None)),
+        UpdateForm::SquareRoot => D::Home::run_baseline(|| drive::<D, sqrt::SquareRoot<D>>(d, run, out, None)),
+        UpdateForm::UD => D::Home::run_baseline(|| drive::<D, ud::UD<D>>(d, run, out, None)),
+        UpdateForm::Information => D::Home::run_baseline(|| drive::<D, information::Information<D>>(d, run, out, None)),
         UpdateForm::Joseph | UpdateForm::Standard => unreachable!("the covariance forms run in Run::filter"),
     }
 }
 
+/// Where the time loop stores the square-root form's factors for its smoother: S(t|t) and
+/// S(t|t−1), `(T, n, n)` each.
+pub(crate) struct FactorStore<'a> {
+    pub filt: &'a mut [f64],
+    pub pred: &'a mut [f64],
+}
+
 /// The time loop, shared by the forms.
 #[inline(always)]
-fn drive<D: Dims, R: Recursion<D>>(d: D, run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> {
+fn drive<D: Dims, R: Recursion<D>>(
+    d: D,
+    run: &Run<'_>,
+    out: &mut FilterOutputs<'_>,
+    mut factors: Option<&mut FactorStore<'_>>,
+) -> Result<f64> {
     let (n, m) = (d.n(), run.model.n_obs());
     let mut form = R::new(d, run.x0, run.p0)?;
     let mut meas = Measurement::new(n, m, run.model.n_inputs());
     let mut derived = Derived::new(n, m, out);
     let constant = run.model.steps().is_none();
+    // The innovations of all components: an output, and what the derived outputs read.
+    let want_innov = out.innov.is_some() || derived.needed();
     let mut total = 0.0;
     let mut p = vec![0.0; n * n];
     for t in run.start..run.y.steps() {
@@ -112,7 +159,12 @@ fn drive<D: Dims, R: Recursion<D>>(d: D, run: &Run<'_>, out: &mut FilterOutputs<
             form.covariance(&mut p);
         }
         out.store_prior(t, form.x(), &p);
-        meas.innovation(&sys, y, u, form.x());
+        if let (Some(store), Some(s)) = (factors.as_deref_mut(), form.square_root()) {
+            store.pred[t * n * n..][..n * n].copy_from_slice(s);
+        }
+        if want_innov {
+            meas.innovation(&sys, y, u, form.x());
+        }
         if derived.needed() {
             derived.compute(&sys, &meas, &p);
         }
@@ -124,6 +176,9 @@ fn drive<D: Dims, R: Recursion<D>>(d: D, run: &Run<'_>, out: &mut FilterOutputs<
         total += loglik_t;
         if out.p_filt.is_some() {
             form.covariance(&mut p);
+        }
+        if let (Some(store), Some(s)) = (factors.as_deref_mut(), form.square_root()) {
+            store.filt[t * n * n..][..n * n].copy_from_slice(s);
         }
         out.store_values(t, form.x(), &p, &meas.innov, &derived.s_full, &derived.gain, loglik_t);
         out.store_gain_pred(t, &derived.gain_pred);
@@ -148,7 +203,8 @@ fn drive<D: Dims, R: Recursion<D>>(d: D, run: &Run<'_>, out: &mut FilterOutputs<
 struct Measurement {
     n: usize,
     m: usize,
-    /// The innovation of every component, e = y − H x̂(t|t−1) − D u (NaN where missing).
+    /// The innovation of every component, e = y − H x̂(t|t−1) − D u (NaN where missing),
+    /// when an output needs it.
     innov: Vec<f64>,
     /// Observed components and how many.
     obs: Vec<usize>,
@@ -177,8 +233,9 @@ struct Measurement {
     has_n: bool,
     /// y_o − D_o u of the observed components.
     y_minus_du: Vec<f64>,
-    /// B u + G (y_o − D_o u) (n).
+    /// B u + G (y_o − D_o u) (n), and whether it is zero (no B u, no N).
     shift: Vec<f64>,
+    shift_is_zero: bool,
     k: usize,
 }
 
@@ -207,11 +264,13 @@ impl Measurement {
             has_n: false,
             y_minus_du: vec![0.0; m],
             shift: vec![0.0; n],
+            shift_is_zero: true,
             k,
         }
     }
 
     /// e = y − H x − D u of every component (NaN where y is missing).
+    #[inline(always)]
     fn innovation(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, x: &[f64]) {
         let (n, k) = (self.n, self.k);
         for (i, e) in self.innov.iter_mut().enumerate() {
@@ -225,6 +284,7 @@ impl Measurement {
 
     /// Prepares the observed components of `y`; returns whether F̃ and Q̃ changed since the
     /// last step (always for a time-varying model).
+    #[inline(always)]
     fn prepare(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, constant: bool, t: usize) -> Result<bool> {
         let k = self.k;
         self.mo = 0;
@@ -243,7 +303,11 @@ impl Measurement {
             }
             self.y_minus_du[a] = y[i] - du;
         }
-        let same = constant && self.is_prepared && self.prepared[..] == self.obs[..mo];
+        // (All observed again, the common case, needs no comparison.)
+        let same = constant
+            && self.is_prepared
+            && self.prepared.len() == mo
+            && (mo == self.m || self.prepared[..] == self.obs[..mo]);
         if !same {
             self.decorrelate(sys, t)?;
             self.prepared.clear();
@@ -349,8 +413,17 @@ impl Measurement {
     }
 
     /// The time update's shift B u + G (y_o − D_o u).
+    #[inline(always)]
     fn shift(&mut self, sys: &StepView<'_>, u: Option<&[f64]>) {
         let (n, k, mo) = (self.n, self.k, self.mo);
+        if !self.has_n && (sys.b.is_none() || u.is_none()) {
+            if !self.shift_is_zero {
+                self.shift.fill(0.0);
+                self.shift_is_zero = true;
+            }
+            return;
+        }
+        self.shift_is_zero = false;
         for r in 0..n {
             let mut s = 0.0;
             if let (Some(b), Some(u)) = (sys.b, u) {

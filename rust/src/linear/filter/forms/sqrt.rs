@@ -54,6 +54,10 @@ impl<D: Dims> Recursion<D> for SquareRoot<D> {
         self.x.get()
     }
 
+    fn square_root(&self) -> Option<&[f64]> {
+        Some(self.s.get())
+    }
+
     fn covariance(&self, p: &mut [f64]) {
         let (n, s) = (self.d.n(), self.s.get());
         for i in 0..n {
@@ -135,27 +139,27 @@ impl<D: Dims> Recursion<D> for SquareRoot<D> {
             }
         }
         self.right.get_mut().copy_from_slice(self.q_factor.get());
-        lq_lower(self.left.get_mut(), self.right.get_mut(), n);
+        lq_lower(self.left.get_mut(), self.right.get_mut(), n, n);
         self.s.get_mut().copy_from_slice(self.left.get());
         positive_diagonal(self.s.get_mut(), n);
         Ok(())
     }
 }
 
-/// Householder reflections from the right reduce `[a b]` (n × 2n) to `[l 0]`, l lower
-/// triangular, in place in `a` (`b` is left as rounding).
+/// Householder reflections from the right reduce `[a b]` (`a` n × n, `b` n × w) to `[l 0]`,
+/// l lower triangular, in place in `a` (`b` is zeroed).
 #[inline(always)]
-fn lq_lower(a: &mut [f64], b: &mut [f64], n: usize) {
+pub(super) fn lq_lower(a: &mut [f64], b: &mut [f64], n: usize, w: usize) {
     for i in 0..n {
         // The row's entries a[i, i..n] and b[i, ..].
         let norm2: f64 = (i..n).map(|j| a[i * n + j] * a[i * n + j]).sum::<f64>()
-            + (0..n).map(|j| b[i * n + j] * b[i * n + j]).sum::<f64>();
+            + (0..w).map(|j| b[i * w + j] * b[i * w + j]).sum::<f64>();
         let tail2 = norm2 - a[i * n + i] * a[i * n + i];
         if tail2 <= 0.0 || norm2 == 0.0 {
             for j in i + 1..n {
                 a[i * n + j] = 0.0;
             }
-            b[i * n..][..n].fill(0.0);
+            b[i * w..][..w].fill(0.0);
             continue;
         }
         let norm = norm2.sqrt();
@@ -165,30 +169,30 @@ fn lq_lower(a: &mut [f64], b: &mut [f64], n: usize) {
         let v_i = head - alpha;
         let beta = 1.0 / (alpha * v_i); // 2 / (v'v) = −1 / (α v_i)
         for r in i + 1..n {
-            let w = a[r * n + i] * v_i
+            let dot = a[r * n + i] * v_i
                 + (i + 1..n).map(|j| a[r * n + j] * a[i * n + j]).sum::<f64>()
-                + (0..n).map(|j| b[r * n + j] * b[i * n + j]).sum::<f64>();
-            let w = w * beta;
-            a[r * n + i] += w * v_i;
+                + (0..w).map(|j| b[r * w + j] * b[i * w + j]).sum::<f64>();
+            let scale = dot * beta;
+            a[r * n + i] += scale * v_i;
             for j in i + 1..n {
-                a[r * n + j] += w * a[i * n + j];
+                a[r * n + j] += scale * a[i * n + j];
             }
-            for j in 0..n {
-                b[r * n + j] += w * b[i * n + j];
+            for j in 0..w {
+                b[r * w + j] += scale * b[i * w + j];
             }
         }
         a[i * n + i] = alpha;
         for j in i + 1..n {
             a[i * n + j] = 0.0;
         }
-        b[i * n..][..n].fill(0.0);
+        b[i * w..][..w].fill(0.0);
     }
 }
 
 /// Flips the sign of each column of the lower triangular `s` whose diagonal is negative
 /// (S S' is unchanged; the factor is then the Cholesky factor).
 #[inline(always)]
-fn positive_diagonal(s: &mut [f64], n: usize) {
+pub(super) fn positive_diagonal(s: &mut [f64], n: usize) {
     for j in 0..n {
         if s[j * n + j] < 0.0 {
             for i in j..n {
