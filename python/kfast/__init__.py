@@ -52,6 +52,7 @@ from kfast.nonlinear.batch import ekf_batch, ukf_batch
 from kfast.multiple import IMM, IMMFilter, IMMResult, ModelBank, gaussian_sum, imm_filter, model_bank
 from kfast.linear.batch import BatchResult, filter_batch
 from kfast.linear.estimation import EMResult, FitResult, fit
+from kfast.linear.score import loglik_score
 from kfast.sampling import KalmanBucy, discretize, expm, kalman_bucy, stationary_cov_continuous
 from kfast.riccati.stationary import InnovationsForm, SteadyState
 from kfast.riccati.solvers import (
@@ -108,6 +109,7 @@ __all__ = [
     "ukf_batch",
     "BatchResult",
     "fit",
+    "loglik_score",
     "FitResult",
     "EMResult",
     "KfastError",

@@ -75,6 +75,7 @@ def fit(
     bounds: Optional[Sequence] = None,
     options: Optional[dict] = None,
     P0_inf: Optional[ArrayLike] = None,
+    gradient: str = "numerical",
 ) -> FitResult:
     """Maximum-likelihood estimates of the parameters theta of a model.
 
@@ -100,6 +101,11 @@ def fit(
         The diffuse part of the prior (exact diffuse initialization, see
         :meth:`LinearGaussian.filter`): then the diffuse log-likelihood is maximized and build's
         P0 is the finite part.
+    gradient : {"numerical", "analytic"}
+        How the optimizer gets the gradient: "numerical" (scipy's finite differences of the
+        log-likelihood, the default) or "analytic", the exact score of :func:`kfast.loglik_score`
+        (the filter's tangent recursion), which also gives the Hessian for the standard errors
+        as central differences of the score. "analytic" needs an ordinary prior (no P0_inf).
 
     Returns
     -------
@@ -136,6 +142,11 @@ def fit(
     """
     from scipy.optimize import minimize
 
+    from kfast._args import choice
+
+    gradient = choice("gradient", gradient, ("numerical", "analytic"))
+    if gradient == "analytic" and P0_inf is not None:
+        raise KfastError('gradient: the analytic score is for an ordinary prior; with P0_inf use gradient="numerical"')
     if not callable(build):
         raise KfastError(f"build: expected a callable build(theta) -> (model, x0, P0), got {type(build).__name__}")
     theta0 = _fit_theta0(theta0)
@@ -155,14 +166,17 @@ def fit(
         ll = loglik(theta)
         return -ll if np.isfinite(ll) else np.inf
 
-    opt = minimize(objective, theta0, method=method, bounds=bounds, options=options)
+    if gradient == "analytic":
+        opt = minimize(_negative_score(build, y, u), theta0, jac=True, method=method, bounds=bounds, options=options)
+    else:
+        opt = minimize(objective, theta0, method=method, bounds=bounds, options=options)
     theta = np.asarray(opt.x, dtype=float)
     if not np.all(np.isfinite(theta)):
         raise KfastError(
             f"build: the optimizer left the finite numbers (theta = {theta}) from theta0 = {theta0}, where the "
             f"log-likelihood is {ll0:.6g}: rescale y, reparametrize build or give bounds"
         )
-    hess = _hessian(loglik, theta)
+    hess = _hessian_of_score(build, y, u, theta) if gradient == "analytic" else _hessian(loglik, theta)
     cov, se = _covariance(hess)
     model, x0, P0 = _build(build, theta, "the optimum")
     return FitResult(theta=theta, se=se, cov=cov, loglik=float(-opt.fun), model=model, x0=x0, P0=P0, optimizer=opt)
@@ -194,6 +208,41 @@ def _fit_loglik0(model: LinearGaussian, x0, P0, y: np.ndarray, u: Optional[np.nd
             )
         raise KfastError(f"build: the log-likelihood at theta0 is not finite ({ll0})")
     return float(ll0)
+
+
+def _negative_score(build: Callable, y: np.ndarray, u: Optional[np.ndarray]) -> Callable:
+    """theta -> (-loglik, -score) for scipy (jac=True); +inf where build or the filter fail."""
+    from kfast.linear.score import loglik_score
+
+    def objective(theta):
+        try:
+            ll, score = loglik_score(build, theta, y, u)
+        except KfastError:
+            return np.inf, np.zeros(len(theta))
+        if not (np.isfinite(ll) and np.all(np.isfinite(score))):
+            return np.inf, np.zeros(len(theta))
+        return -ll, -score
+
+    return objective
+
+
+def _hessian_of_score(build: Callable, y: np.ndarray, u: Optional[np.ndarray], theta: np.ndarray) -> np.ndarray:
+    """Central differences of the analytic score, step 1e-4 max(1, |theta_i|), symmetrized."""
+    from kfast.linear.score import loglik_score
+
+    k = len(theta)
+    H = np.zeros((k, k))
+    for i in range(k):
+        h = 1e-4 * max(1.0, abs(theta[i]))
+        step = np.zeros(k)
+        step[i] = h
+        try:
+            plus, minus = loglik_score(build, theta + step, y, u)[1], loglik_score(build, theta - step, y, u)[1]
+        except KfastError:
+            H[:, i] = np.nan
+            continue
+        H[:, i] = (plus - minus) / (2 * h)
+    return (H + H.T) / 2
 
 
 def _hessian(f: Callable, theta: np.ndarray) -> np.ndarray:

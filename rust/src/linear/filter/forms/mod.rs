@@ -18,7 +18,8 @@
 //! observed components; the time loop allocates nothing.
 //!
 //! The loops are compiled for state sizes n ≤ 12 as compile-time constants (the measurement
-//! size does not matter to a scalar update), each in its size's codegen unit (`core::home`).
+//! size does not matter to a scalar update), for the call's instruction set (`core::isa`), each
+//! in its size's codegen unit (`core::home`).
 
 /// Evaluates `$body` with `$d` bound to the state size n as a compile-time constant for
 /// n ≤ 12 (`Fixed<n, 1>`: the measurement size is not part of a scalar update's sizes), else
@@ -70,7 +71,7 @@ use super::step::overflowed;
 use super::Run;
 use crate::core::dims::{Dims, Dyn, Fixed};
 use crate::core::gaussian::UpdateForm;
-use crate::core::home::Home;
+use crate::core::isa::run_best;
 use crate::error::{Error, Result};
 use crate::linear::model::StepView;
 
@@ -116,13 +117,20 @@ pub(crate) fn filter(run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> 
     with_state_dims!(run.model.n_states(), |d| by_form(d, run, out))
 }
 
+/// The loop of `run.form`, compiled for the call's instruction set (`run_best!`, as the
+/// covariance forms: fused multiply-adds where the CPU has them and deterministic mode is off),
+/// each in its size's codegen unit (`core::home`).
 fn by_form<D: Dims>(d: D, run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> {
-    // Each loop in a function of the size's codegen unit (`core::home`).
+    run_best!(run.kernel, d, |d| by_form_inline(d, run, out))
+}
+
+#[inline(always)]
+fn by_form_inline<D: Dims>(d: D, run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> {
     match run.form {
-        UpdateForm::Sequential => D::Home::run_baseline(|| drive::<D, sequential::Sequential<D>>(d, run, out, None)),
-        UpdateForm::SquareRoot => D::Home::run_baseline(|| drive::<D, sqrt::SquareRoot<D>>(d, run, out, None)),
-        UpdateForm::UD => D::Home::run_baseline(|| drive::<D, ud::UD<D>>(d, run, out, None)),
-        UpdateForm::Information => D::Home::run_baseline(|| drive::<D, information::Information<D>>(d, run, out, None)),
+        UpdateForm::Sequential => drive::<D, sequential::Sequential<D>>(d, run, out, None),
+        UpdateForm::SquareRoot => drive::<D, sqrt::SquareRoot<D>>(d, run, out, None),
+        UpdateForm::UD => drive::<D, ud::UD<D>>(d, run, out, None),
+        UpdateForm::Information => drive::<D, information::Information<D>>(d, run, out, None),
         UpdateForm::Joseph | UpdateForm::Standard => unreachable!("the covariance forms run in Run::filter"),
     }
 }

@@ -25,7 +25,7 @@
 use super::sqrt::{lq_lower, positive_diagonal, SquareRoot};
 use super::{drive, not_psd, psd_cholesky, FactorStore, Measurement};
 use crate::core::dims::{Dims, Dyn, Fixed};
-use crate::core::home::Home;
+use crate::core::isa::run_best;
 use crate::error::Result;
 use crate::linear::filter::outputs::FilterOutputs;
 use crate::linear::filter::Run;
@@ -48,12 +48,17 @@ pub(crate) fn smooth_square_root(
     out: &mut FilterOutputs<'_>,
     smooth: SquareRootSmootherOutputs<'_>,
 ) -> Result<f64> {
-    with_state_dims!(run.model.n_states(), |d| in_home(d, |d| smooth_in(d, run, out, smooth)))
+    with_state_dims!(run.model.n_states(), |d| in_best_loop(d, run, out, smooth))
 }
 
-/// `job` in a function of the size's codegen unit (`core::home`).
-fn in_home<D: Dims, T>(d: D, job: impl FnOnce(D) -> T) -> T {
-    D::Home::run_baseline(|| job(d))
+/// [`smooth_in`] for the call's instruction set, in the size's codegen unit (as the filter).
+fn in_best_loop<D: Dims>(
+    d: D,
+    run: &Run<'_>,
+    out: &mut FilterOutputs<'_>,
+    smooth: SquareRootSmootherOutputs<'_>,
+) -> Result<f64> {
+    run_best!(run.kernel, d, |d| smooth_in(d, run, out, smooth))
 }
 
 #[inline(always)]
