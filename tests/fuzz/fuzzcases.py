@@ -196,6 +196,7 @@ class Entry:
     inf_ok: bool = False  # an overflowing exact result (e.g. expm) may be inf
     raw: bool = False  # a compiled method that takes C-contiguous float64 arrays only: fuzzed for shapes
     validator: Optional[tuple] = None  # (entry name, {arg: arg}) mapping of the sibling call
+    complex_ok: bool = False  # complex arrays are valid input (the Riccati and Lyapunov solvers)
 
     def render(self, args: dict) -> str:
         placed = set(re.findall(r"\{(\w+)\}", self.template)) - {"kw"}
@@ -367,6 +368,7 @@ _ENTRY_LIST = [
             Arg("r", "R1", shape=(1, 1), alt_shapes=((),)),
             Arg("method", "'doubling'", kind="str", optional=True),
         ),
+        complex_ok=True,
     ),
     Entry(
         "solve_continuous_are",
@@ -374,11 +376,12 @@ _ENTRY_LIST = [
         "kfast.solve_continuous_are({kw})",
         (Arg("a", "AC", shape=(2, 2)), Arg("b", "BC", shape=(2, 1)), Arg("q", "Q2", shape=(2, 2)),
          Arg("r", "R1", shape=(1, 1), alt_shapes=((),))),
+        complex_ok=True,
     ),
     Entry("solve_discrete_lyapunov", "ric", "kfast.solve_discrete_lyapunov({kw})",
-          (Arg("a", "AS", shape=(2, 2)), Arg("q", "Q2", shape=(2, 2)))),
+          (Arg("a", "AS", shape=(2, 2)), Arg("q", "Q2", shape=(2, 2))), complex_ok=True),
     Entry("solve_continuous_lyapunov", "ric", "kfast.solve_continuous_lyapunov({kw})",
-          (Arg("a", "AH", shape=(2, 2)), Arg("q", "Q2", shape=(2, 2)))),
+          (Arg("a", "AH", shape=(2, 2)), Arg("q", "Q2", shape=(2, 2))), complex_ok=True),
     Entry("expm", "ric", "kfast.expm({kw})", (Arg("a", "AH", shape=(2, 2)),), inf_ok=True),
     Entry(
         "discretize",

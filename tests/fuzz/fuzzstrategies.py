@@ -93,6 +93,9 @@ def form_case_for(entry: Entry, arg: Arg, form: str, i: int = 0) -> Case:
     expr = template.format(a=arg.good, i=i)
     if (arg.optional or arg.none_ok) and form == "None":
         return _make(entry, arg, expr, "form", form, "either")
+    if entry.complex_ok and form == "complex":
+        # A complex equation: solved, or refused naming the argument (a non-Hermitian q, r).
+        return _make(entry, arg, expr, "form", form, "either")
     reference = "canonical" if expect in ("equal", "either") else None
     return _make(entry, arg, expr, "form", form, expect, must, reference)
 

@@ -1,6 +1,12 @@
 """Riccati and Lyapunov solvers with SciPy's argument conventions (drop-in replacements for
 ``scipy.linalg.solve_discrete_are``, ``solve_continuous_are``, ``solve_discrete_lyapunov``
-and ``solve_continuous_lyapunov``), computed in Rust. Real input only.
+and ``solve_continuous_lyapunov``), computed in Rust.
+
+Complex input (Hermitian q, r for the Riccati equations) is solved through the real embedding
+M -> [[Re M, -Im M], [Im M, Re M]] (docs/algorithms.md, "Complex and generalized equations"):
+it maps products, inverses and conjugate transposes to their real counterparts, so the real
+equation of twice the size has the embedded solution. The Lyapunov solvers also take a
+nonsingular e (generalized equations), reduced to the standard ones by e^-1.
 """
 
 from __future__ import annotations
@@ -30,6 +36,64 @@ def _matrix(name: str, value: ArrayLike) -> np.ndarray:
 
 def _optional(name: str, value: Optional[ArrayLike]) -> Optional[np.ndarray]:
     return None if value is None else _matrix(name, value)
+
+
+def _is_complex(*values: Optional[ArrayLike]) -> bool:
+    """Whether any of the given values has a complex dtype (values that are not arrays at all
+    are left to the real path's checks, which name them)."""
+    for v in values:
+        try:
+            if v is not None and np.iscomplexobj(np.asarray(v)):
+                return True
+        except (ValueError, TypeError):
+            continue
+    return False
+
+
+def _complex_matrix(name: str, value: ArrayLike) -> np.ndarray:
+    """A 2-D complex128 array with finite entries (a scalar is 1 x 1)."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "fiuc":
+        raise _kfast.KfastError(f"{name}: expected numbers, got dtype {a.dtype}")
+    a = np.asarray(a, dtype=np.complex128)
+    if a.ndim == 0:
+        a = a.reshape(1, 1)
+    if a.ndim != 2:
+        raise _kfast.KfastError(f"{name}: expected a 2-D array, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise _kfast.KfastError(f"{name}: contains a non-finite value")
+    return a
+
+
+def _realify(m: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    """The real embedding [[Re m, -Im m], [Im m, Re m]]."""
+    if m is None:
+        return None
+    return np.block([[m.real, -m.imag], [m.imag, m.real]])
+
+
+def _complexify(x: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """The complex matrix whose embedding is (nearest to) x, of shape (rows, cols)."""
+    real = (x[:rows, :cols] + x[rows:, cols:]) / 2
+    imag = (x[rows:, :cols] - x[:rows, cols:]) / 2
+    return real + 1j * imag
+
+
+def _reduce_by_e(name: str, e: Optional[ArrayLike], a: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(e^-1 a, e^-1 q e^-H) for a nonsingular e (a and q unchanged without e)."""
+    if e is None:
+        return a, q
+    em = _complex_matrix("e", e) if np.iscomplexobj(np.asarray(e)) or np.iscomplexobj(a) else _matrix("e", e)
+    n = a.shape[0]
+    if em.shape != (n, n):
+        raise _kfast.KfastError(f"e: expected shape ({n}, {n}) like a, got {em.shape}")
+    if not np.all(np.isfinite(em)):
+        raise _kfast.KfastError("e: contains a non-finite value")
+    if np.linalg.cond(em) > 1e12:
+        raise _kfast.KfastError(f"e: must be nonsingular for {name} (condition number {np.linalg.cond(em):.3g})")
+    ea = np.linalg.solve(em, a)
+    eq = np.linalg.solve(em, np.linalg.solve(em, q.conj().T).conj().T)
+    return ea, eq
 
 
 def solve_discrete_are(
@@ -133,8 +197,37 @@ def dare(
     or a fallback, "newton" or "pencil")."""
     if method not in DARE_METHODS:
         raise _kfast.KfastError(f"method: expected one of {DARE_METHODS}, got {method!r}")
+    if _is_complex(a, b, q, r, e, s):
+        return _complex_riccati(_kfast.dare, a, b, q, r, e, s, cast(DareMethod, method), eigenvalues, discrete=True)
     args = (_matrix("a", a), _matrix("b", b), _matrix("q", q), _matrix("r", r), _optional("e", e), _optional("s", s))
     return _kfast.dare(*args, cast(DareMethod, method), eigenvalues)
+
+
+def _complex_riccati(solver: Any, a, b, q, r, e, s, *options: Any, discrete: bool) -> dict:
+    """A complex DARE or CARE through its real embedding; x Hermitian, gain complex, the
+    closed-loop eigenvalues those of the complex closed loop."""
+    am, bm, qm, rm = (_complex_matrix(k, v) for k, v in zip("abqr", (a, b, q, r)))
+    em = None if e is None else _complex_matrix("e", e)
+    sm = None if s is None else _complex_matrix("s", s)
+    n, k = am.shape[0], bm.shape[1] if bm.ndim == 2 else 1
+    for name, m in (("q", qm), ("r", rm)):
+        if m.shape[0] == m.shape[1] and not np.allclose(m, m.conj().T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(m).max())):
+            raise _kfast.KfastError(f"{name}: must be Hermitian (equal to its conjugate transpose)")
+    real = [_realify(m) for m in (am, bm, qm, rm, em, sm)]
+    if discrete:
+        out = dict(solver(*real, *options[:1], False))
+    else:
+        out = dict(solver(*real))
+    x = _complexify(out["x"], n, n)
+    out["x"] = (x + x.conj().T) / 2
+    out["gain"] = _complexify(out["gain"], k, n)
+    want_eigenvalues = options[1] if discrete else True
+    if want_eigenvalues:
+        closed = am - bm @ out["gain"]
+        if em is not None:
+            closed = closed @ np.linalg.inv(em) if discrete else np.linalg.solve(em, closed)
+        out["closed_loop_eigenvalues"] = np.linalg.eigvals(closed)
+    return out
 
 
 def solve_continuous_are(
@@ -207,16 +300,23 @@ def care(
 ) -> dict:
     """``solve_continuous_are`` with the details (x, gain r^-1 (b'Xe + s'), closed-loop
     eigenvalues, residual, iterations)."""
+    if _is_complex(a, b, q, r, e, s):
+        return _complex_riccati(_kfast.care, a, b, q, r, e, s, discrete=False)
     return _kfast.care(_matrix("a", a), _matrix("b", b), _matrix("q", q), _matrix("r", r), _optional("e", e), _optional("s", s))
 
 
-def solve_discrete_lyapunov(a: ArrayLike, q: ArrayLike) -> np.ndarray:
-    """X with X = a X a' + q (SciPy's convention a X a^H - X + q = 0).
+def solve_discrete_lyapunov(a: ArrayLike, q: ArrayLike, e: Optional[ArrayLike] = None) -> np.ndarray:
+    """X with X = a X a' + q (SciPy's convention a X a^H - X + q = 0); with e, the generalized
+    a X a^H - e X e^H + q = 0 (python-control's ``dlyap(A, Q, E=E)``).
 
     Parameters
     ----------
     a : array_like, shape (n, n)
+        Real or complex.
     q : array_like, shape (n, n)
+        Real or complex.
+    e : array_like, shape (n, n), optional
+        Nonsingular; the equation is reduced to the standard one with e^-1 a and e^-1 q e^-H.
 
     Returns
     -------
@@ -231,24 +331,46 @@ def solve_discrete_lyapunov(a: ArrayLike, q: ArrayLike) -> np.ndarray:
     Notes
     -----
     Bartels-Stewart on the real Schur form of a. With a = F stable and q = Q the solution is
-    the stationary state covariance Pi = F Pi F' + Q (Söderström (4.22)).
+    the stationary state covariance Pi = F Pi F' + Q (Söderström (4.22)). Complex input is
+    solved through the real embedding, which needs lambda_i lambda_j != 1 for all eigenvalues of
+    a and their conjugates (true for a stable a).
 
     Examples
     --------
     >>> print(kfast.solve_discrete_lyapunov(0.8, 0.68).round(6))  # 0.68 / (1 - 0.8^2)
     [[1.888889]]
     """
-    return _kfast.solve_discrete_lyapunov(_matrix("a", a), _matrix("q", q))
+    return _lyapunov(_kfast.solve_discrete_lyapunov, "the discrete Lyapunov equation", a, q, e)
 
 
-def solve_continuous_lyapunov(a: ArrayLike, q: ArrayLike) -> np.ndarray:
-    """X with a X + X a' = q (SciPy's convention).
+def _lyapunov(solver: Any, name: str, a: ArrayLike, q: ArrayLike, e: Optional[ArrayLike]) -> np.ndarray:
+    """A (generalized, complex) Lyapunov equation by the real solver ``solver``."""
+    if not _is_complex(a, q, e):
+        am, qm = _matrix("a", a), _matrix("q", q)
+        if e is not None:
+            am, qm = _reduce_by_e(name, e, am, qm)
+            am, qm = np.ascontiguousarray(am), np.ascontiguousarray(qm)
+        return solver(am, qm)
+    am, qm = _complex_matrix("a", a), _complex_matrix("q", q)
+    am, qm = _reduce_by_e(name, e, am, qm)
+    n = am.shape[0]
+    if am.shape != (n, n) or qm.shape != (n, n):
+        raise _kfast.KfastError(f"q: expected shape {am.shape} like a, got {qm.shape}")
+    return _complexify(solver(_realify(am), _realify(qm)), n, n)
+
+
+def solve_continuous_lyapunov(a: ArrayLike, q: ArrayLike, e: Optional[ArrayLike] = None) -> np.ndarray:
+    """X with a X + X a' = q (SciPy's convention); with e, the generalized
+    a X e^H + e X a^H = q (python-control's ``lyap(A, -q, E=E)``).
 
     Parameters
     ----------
     a : array_like, shape (n, n)
+        Real or complex.
     q : array_like, shape (n, n)
-        For a state covariance, q = -Qc.
+        For a state covariance, q = -Qc. Real or complex.
+    e : array_like, shape (n, n), optional
+        Nonsingular; the equation is reduced to the standard one with e^-1 a and e^-1 q e^-H.
 
     Returns
     -------
@@ -263,7 +385,9 @@ def solve_continuous_lyapunov(a: ArrayLike, q: ArrayLike) -> np.ndarray:
     Notes
     -----
     Bartels-Stewart on the real Schur form of a. With a = A Hurwitz and q = -Qc the solution
-    is the stationary covariance of dx = A x dt + dbeta (Söderström (4.90)-(4.92)).
+    is the stationary covariance of dx = A x dt + dbeta (Söderström (4.90)-(4.92)). Complex
+    input is solved through the real embedding, which needs lambda_i + lambda_j != 0 for all
+    eigenvalues of a and their conjugates (true for a Hurwitz a).
 
     Examples
     --------
@@ -275,4 +399,4 @@ def solve_continuous_lyapunov(a: ArrayLike, q: ArrayLike) -> np.ndarray:
     >>> print(np.diag(X).round(6))
     [0.182432 0.75    ]
     """
-    return _kfast.solve_continuous_lyapunov(_matrix("a", a), _matrix("q", q))
+    return _lyapunov(_kfast.solve_continuous_lyapunov, "the continuous Lyapunov equation", a, q, e)
