@@ -168,6 +168,34 @@ def test_draws_have_the_smoothed_moments():
     np.testing.assert_allclose((x @ H.T + case.u @ D.T + v)[seen], case.y[seen], atol=1e-9)
 
 
+def test_exact_diffuse_disturbances_are_the_limit_of_a_vague_prior():
+    """P0_inf: the disturbance smoother's moments are the kappa -> infinity limits of those with
+    P0 + kappa P0_inf."""
+    trend = kfast.models.local_linear_trend(0.5, 0.1, irregular=1.0)
+    y = np.sin(np.arange(25) / 4.0) + 0.2 * np.arange(25)
+    y[[4, 11]] = np.nan
+    exact = trend.disturbance_smooth(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2))
+    vague = trend.disturbance_smooth(y, np.zeros(2), 1e7 * np.eye(2))
+    for name in ["w_smooth", "w_cov", "v_smooth", "v_cov"]:
+        np.testing.assert_allclose(getattr(exact, name), getattr(vague, name), rtol=1e-5, atol=1e-5, err_msg=name)
+    assert exact.smoother.filter.n_diffuse == 2
+
+
+def test_exact_diffuse_draws_have_the_exact_diffuse_smoothed_moments():
+    trend = kfast.models.local_linear_trend(0.5, 0.1, irregular=1.0)
+    y = np.sin(np.arange(12) / 3.0) + 0.3 * np.arange(12)
+    y[5] = np.nan
+    draws = 4000
+    post = trend.simulation_smoother(y, np.zeros(2), np.zeros((2, 2)), draws=draws, seed=8, P0_inf=np.eye(2))
+    sm = trend.smooth(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2))
+    sd = np.sqrt(np.diagonal(sm.P_smooth, axis1=1, axis2=2))
+    assert np.all(np.abs(post.x.mean(axis=0) - sm.x_smooth) <= 4.5 * sd / np.sqrt(draws))
+    sample = np.einsum("dti,dtj->tij", post.x - sm.x_smooth, post.x - sm.x_smooth) / draws
+    assert np.all(np.abs(sample - sm.P_smooth) <= 0.1 * np.sqrt(np.einsum("ti,tj->tij", sd**2, sd**2)))
+    with pytest.raises(ValueError, match="P0_inf"):
+        trend.simulation_smoother(y, np.zeros(2), np.zeros((2, 2)), P0_inf=-np.eye(2))
+
+
 def test_the_same_seed_gives_the_same_draws_and_singular_noise_works():
     model = kfast.LinearGaussian(F=[[1.0, 1.0], [0.0, 1.0]], H=[[1.0, 0.0]], Q=np.diag([0.0, 0.1]), R=1.0)
     y = np.cumsum(np.cumsum(np.random.default_rng(0).standard_normal(30))) * 0.1

@@ -870,7 +870,12 @@ class LinearGaussian:
         return SmootherResult(filter=filt, **out)
 
     def disturbance_smooth(
-        self, y: ArrayLike, x0: ArrayLike, P0: ArrayLike, u: Optional[ArrayLike] = None
+        self,
+        y: ArrayLike,
+        x0: ArrayLike,
+        P0: ArrayLike,
+        u: Optional[ArrayLike] = None,
+        P0_inf: Optional[ArrayLike] = None,
     ) -> "DisturbanceSmootherResult":
         """The disturbance smoother: the mean and covariance of each w(t) and v(t) given all the
         data (Durbin & Koopman (2012) Sec. 4.5; KFAS's ``etahat``, ``V_eta``, ``epshat``,
@@ -878,8 +883,9 @@ class LinearGaussian:
 
         Parameters
         ----------
-        y, x0, P0, u
-            As in :meth:`filter` (missing values NaN).
+        y, x0, P0, u, P0_inf
+            As in :meth:`filter` (missing values NaN; with ``P0_inf`` the exact diffuse
+            smoother's moments, so the limits kappa -> infinity of the disturbances' moments).
 
         Returns
         -------
@@ -910,7 +916,7 @@ class LinearGaussian:
         """
         from kfast.linear.posterior import disturbance_smooth
 
-        return disturbance_smooth(self, y, x0, P0, u=u)
+        return disturbance_smooth(self, y, x0, P0, u=u, P0_inf=P0_inf)
 
     def simulation_smoother(
         self,
@@ -921,6 +927,7 @@ class LinearGaussian:
         draws: int = 1,
         seed: Union[int, np.random.Generator, None] = None,
         variates: Optional[dict] = None,
+        P0_inf: Optional[ArrayLike] = None,
     ) -> "PosteriorDraws":
         """Draws of the states and disturbances from their joint posterior p(x, w, v | y): the
         simulation smoother of Durbin & Koopman (2002), for Gibbs samplers and other Bayesian
@@ -941,6 +948,11 @@ class LinearGaussian:
             ``measurement_disturbance_variates``; KFAS's ``u``), mapped to x(0) = x0 + L0 z0 and
             (w, v) = L (z_w, z_v) with L0, L the lower Cholesky factors of P0 and
             [[Q, N], [N', R]] (the symmetric square root when singular).
+        P0_inf : array_like, shape (n, n), optional
+            The diffuse part of the prior (as in :meth:`filter`): the draws are then from the
+            posterior under the exact diffuse prior (x+ starts from x0 + L0 z0 with L0 the factor
+            of the finite part P0, and the mean correction uses the exact diffuse smoother, which
+            does not depend on the diffuse part of x+; Durbin & Koopman (2012) Sec. 4.9).
 
         Returns
         -------
@@ -967,7 +979,7 @@ class LinearGaussian:
         """
         from kfast.linear.posterior import simulation_smoother
 
-        return simulation_smoother(self, y, x0, P0, u=u, draws=draws, seed=seed, variates=variates)
+        return simulation_smoother(self, y, x0, P0, u=u, draws=draws, seed=seed, variates=variates, P0_inf=P0_inf)
 
     def smooth_fixed_lag(
         self,

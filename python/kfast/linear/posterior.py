@@ -120,9 +120,11 @@ class _Conditioning:
         return np.where(both, V, 0.0)
 
 
-def disturbance_smooth(model: "LinearGaussian", y: Any, x0: Any, P0: Any, u: Any = None) -> DisturbanceSmootherResult:
+def disturbance_smooth(
+    model: "LinearGaussian", y: Any, x0: Any, P0: Any, u: Any = None, P0_inf: Any = None
+) -> DisturbanceSmootherResult:
     """The body of :meth:`LinearGaussian.disturbance_smooth` (see there)."""
-    smoother = model.smooth(y, x0, P0, u=u)
+    smoother = model.smooth(y, x0, P0, u=u, P0_inf=P0_inf)
     y_arr, _, _, u_arr = model._data(y, x0, P0, u)
     cond = _Conditioning(model, ~np.isnan(y_arr))
     assert smoother.x_smooth is not None
@@ -149,6 +151,7 @@ def simulation_smoother(
     draws: int = 1,
     seed: Any = None,
     variates: Any = None,
+    P0_inf: Any = None,
 ) -> PosteriorDraws:
     """The body of :meth:`LinearGaussian.simulation_smoother` (see there)."""
     from kfast.linear.model import _generator
@@ -160,6 +163,8 @@ def simulation_smoother(
     T, n, m = y_arr.shape[0], model.n_states, model.n_obs
     _kfast.check_alloc("draws", [[draws, T, n], [draws, T, n], [draws, T, m], [draws, T, n + m]])
     model._core.check_prior(x0_arr, P0_arr)
+    # (Checked by the first smoother call, which names it.)
+    P_inf = None if P0_inf is None else model._prior(x0, P0_inf, ("x0", "P0_inf"))[1]
     z0, z = _variates(variates, draws, T, n, m, _generator(seed))
 
     # One draw (x+, y+) from the model per variate set, through the lower Cholesky factors.
@@ -176,7 +181,7 @@ def simulation_smoother(
         w_plus, v_plus = np.ascontiguousarray(noise[d, :, :n]), np.ascontiguousarray(noise[d, :, n:])
         x_plus, y_plus = model._core.propagate(x_start[d], w_plus, v_plus, u=u_arr)
         gap = y_arr - y_plus
-        sm = model.smooth(gap, zero, P0_arr, u=zero_u, outputs=("x_smooth",))
+        sm = model.smooth(gap, zero, P0_arr, u=zero_u, outputs=("x_smooth",), P0_inf=P_inf)
         assert sm.x_smooth is not None
         x_out[d] = x_plus + sm.x_smooth
         xi_out[d] = noise[d] + np.einsum("tij,tj->ti", cond.A, cond.seen_noise(model, gap, sm.x_smooth, zero_u))

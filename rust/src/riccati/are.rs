@@ -932,9 +932,12 @@ fn shown_stable(m: &Mat<f64>) -> bool {
     false
 }
 
+/// Newton–Kleinman steps after the CARE's eigenvector solution, at most.
+const CARE_NEWTON_STEPS: usize = 5;
+
 /// Solves the CARE (SciPy's `solve_continuous_are(a, b, q, r, e, s)`): the stable invariant
-/// subspace of the Hamiltonian matrix, refined by Newton–Kleinman steps (one continuous
-/// Lyapunov solve each). Needs r invertible.
+/// subspace of the Hamiltonian matrix, refined by Newton–Kleinman steps in correction form (one
+/// continuous Lyapunov solve each, kept while the residual decreases). Needs r invertible.
 pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSolution> {
     let RiccatiProblem { a, b, q, r, e, s, n, m } = problem;
     let p = checked_problem(a, b, q, r, e, s, n, m)?;
@@ -955,19 +958,30 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
     }
     let mut x = sym(&stable_subspace(&ham, n, |l| l.re < 0.0, "in the open left half-plane")?);
     let care_gain = |x: &Mat<f64>| &r_inv * (p.b.transpose() * x + p.s.transpose());
+    // a'X + Xa − (Xb + s) r⁻¹ (b'X + s') + q = a'X + Xa − K'rK + q with K the gain at X.
+    let care_residual =
+        |x: &Mat<f64>, k: &Mat<f64>| sym(&(p.a.transpose() * x + x * &p.a - k.transpose() * &p.r * k + &p.q));
     let mut iterations = 0;
-    for _ in 0..5 {
-        // Newton–Kleinman: (a − bK)'X + X(a − bK) + q − sK − K's' + K'rK = 0
+    let mut res = care_residual(&x, &care_gain(&x));
+    for _ in 0..CARE_NEWTON_STEPS {
+        // Newton–Kleinman in correction form: (a − bK)'Δ + Δ(a − bK) = −Res(X), X ← X + Δ.
+        // Solving for the correction, not for X itself, makes the Lyapunov solve's rounding
+        // relative to Δ (as the DARE's polish): with entries of 1e6 (SciPy's CAREX 8) the
+        // plain step stalls at residuals 40× SciPy's tolerance.
         let k = care_gain(&x);
         let acl = &p.a - &p.b * &k;
-        let sk = &p.s * &k;
-        let c = -sym(&(&p.q - &sk - sk.transpose() + k.transpose() * &p.r * &k));
-        let Ok(next) = solve_continuous_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&c), n) else {
+        let Ok(delta) = solve_continuous_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&(-&res)), n)
+        else {
             break;
         };
-        let next = sym(&to_mat(&next, n));
-        let change = (&next - &x).norm_max();
-        x = next;
+        let next = sym(&(&x + to_mat(&delta, n)));
+        let next_res = care_residual(&next, &care_gain(&next));
+        let (new_size, old_size) = (next_res.norm_max(), res.norm_max());
+        if new_size.is_nan() || new_size >= old_size {
+            break;
+        }
+        let change = to_mat(&delta, n).norm_max();
+        (x, res) = (next, next_res);
         iterations += 1;
         if change <= 1e-14 * x.norm_max().max(1e-300) {
             break;
@@ -982,9 +996,7 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
             "the solution found is not stabilizing (largest closed-loop real part {max_re:.6})"
         )));
     }
-    // a'X + Xa − (Xb + s) r⁻¹ (b'X + s') + q = a'X + Xa − K'rK + q
-    let res = p.a.transpose() * &x + &x * &p.a - k.transpose() * &p.r * &k + &p.q;
-    let residual = res.norm_max() / x.norm_max().max(1.0);
+    let residual = care_residual(&x, &k).norm_max() / x.norm_max().max(1.0);
     let eigenvalues = OnceLock::from(closed_loop_eigenvalues);
     Ok(RiccatiSolution { eigenvalues, ..RiccatiSolution::of(&p, &x, k, &acl, residual, iterations, "hamiltonian") })
 }

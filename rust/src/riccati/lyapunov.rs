@@ -167,7 +167,15 @@ fn solve_block(
                         Kind::Discrete => f64::from(u8::from(row == col)) - ara * bcb,
                         Kind::Continuous => ara * f64::from(u8::from(b == c)) + f64::from(u8::from(a == r)) * bcb,
                     };
-                    scale = scale.max(ara.abs() * bcb.abs()).max(ara.abs()).max(bcb.abs());
+                    // The size of the system's entries: 1 − a b for the discrete equation,
+                    // a + b for the continuous one (whose scale must not include a b: with
+                    // entries of 1e6 it would refuse a well-posed block, SciPy's CAREX 8).
+                    scale = match kind {
+                        Kind::Discrete => scale.max(ara.abs() * bcb.abs()),
+                        Kind::Continuous => scale,
+                    }
+                    .max(ara.abs())
+                    .max(bcb.abs());
                 }
             }
             m[row][size] = rhs[r][c];
