@@ -236,6 +236,28 @@ fn scalar_dare_and_care_match_their_closed_forms() -> Result<()> {
     Ok(())
 }
 
+/// SciPy's CAREX 10 (Benner–Laub–Mehrmann): a closed-loop eigenvalue within rounding of the
+/// imaginary axis picks a non-stabilizing Hamiltonian subspace; Newton–Kleinman from a
+/// stabilizing gain finds the stabilizing solution, to SciPy's tolerance 1.5e-14.
+#[test]
+fn care_near_the_imaginary_axis_falls_back_to_newton_kleinman() -> Result<()> {
+    let (a, b, q, r) = ([3.0, 1.0, 4.0, 2.0], [1.0, 1.0], [-11.0, -5.0, -5.0, -2.0], [1.0]);
+    let sol = solve_continuous_are(RiccatiProblem::new(&a, &b, &q, &r, 2, 1))?;
+    let x = &sol.x;
+    // a'X + Xa − X b r⁻¹ b' X + q, r = 1.
+    let xb = [x[0] * b[0] + x[1] * b[1], x[2] * b[0] + x[3] * b[1]];
+    for i in 0..2 {
+        for j in 0..2 {
+            let ax: f64 = (0..2).map(|k| a[k * 2 + i] * x[k * 2 + j] + x[i * 2 + k] * a[k * 2 + j]).sum();
+            let res = ax - xb[i] * xb[j] + q[i * 2 + j];
+            assert!(res.abs() <= 1.5e-14, "residual {res} at ({i}, {j})");
+        }
+    }
+    let largest = sol.closed_loop_eigenvalues()?.iter().map(|l| l.0).fold(f64::NEG_INFINITY, f64::max);
+    assert!(largest < 0.0, "closed loop {largest}");
+    Ok(())
+}
+
 #[test]
 fn scalar_dare_with_a_cross_term_matches_its_closed_form() -> Result<()> {
     // a = 0, b = 1, q = 5, r = 1, s = 2: removing the cross term (Söderström Lemma 6.4) gives

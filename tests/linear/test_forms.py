@@ -252,9 +252,68 @@ def test_covariance_form_options_are_refused(form):
     with pytest.raises(ValueError, match="converge_tol"):
         model.filter(np.ones(5), 0.0, 1.0, form=form, converge_tol=1e-9)
     with pytest.raises(ValueError, match="form"):
-        kfast.KalmanFilter(model, 0.0, 1.0, form=form)
-    with pytest.raises(ValueError, match="form"):
         model.smooth_fixed_lag(np.ones(5), 0.0, 1.0, lag=2, form=form)
+    with pytest.raises(ValueError, match="form"):
+        kfast.FixedLagSmoother(model, 0.0, 1.0, lag=2, form=form)
+
+
+@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("seed", [3, 13, 22, 35, 47])
+def test_streaming_filter_in_each_form_equals_the_batch_filter(form, seed):
+    case = case_for(seed)
+    model = kfast.LinearGaussian(**case.model)
+    # Every fifth step is a predict without an update: the batch filter sees it as missing.
+    gapped = case.y.copy()
+    gapped[4::5] = np.nan
+    batch = model.filter(gapped, case.x0, case.P0, u=case.u, form=form)
+    kf = kfast.KalmanFilter(model, case.x0, case.P0, form=form)
+    for t in range(len(case.y)):
+        u = None if case.u is None else case.u[t]
+        assert_close(kf.x, batch.x_pred[t], f"x_pred {t}")
+        assert_close(kf.P, batch.P_pred[t], f"P_pred {t}")
+        if t % 5 != 4:
+            kf.update(case.y[t], u)
+            assert_close(kf.x, batch.x_filt[t], f"x_filt {t}")
+            assert_close(kf.P, batch.P_filt[t], f"P_filt {t}")
+        kf.predict(u)
+    assert_close(kf.x, batch.x_next, "x_next")
+    assert_close(kf.P, batch.P_next, "P_next")
+    assert kf.loglik == pytest.approx(batch.loglik, rel=1e-12)
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_streaming_update_with_its_own_h_and_r(form):
+    model = kfast.LinearGaussian(F=[[1.0, 1.0], [0.0, 1.0]], H=[[1.0, 0.0]], Q=0.1 * np.eye(2), R=1.0)
+    joseph = kfast.KalmanFilter(model, np.zeros(2), np.eye(2))
+    robust = kfast.KalmanFilter(model, np.zeros(2), np.eye(2), form=form)
+    for t in range(6):
+        H, R = [[1.0, 0.5 * t]], [[1.0 + t]]
+        for kf in (joseph, robust):
+            kf.update([float(t)], H=H, R=R)
+        assert_close(robust.x, joseph.x, f"x {t}")
+        assert_close(robust.P, joseph.P, f"P {t}")
+        joseph.predict()
+        robust.predict()
+    assert robust.loglik == pytest.approx(joseph.loglik, rel=1e-12)
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_streaming_filter_in_each_form_pickles(form):
+    import pickle
+
+    case = case_for(13)
+    model = kfast.LinearGaussian(**case.model)
+    kf = kfast.KalmanFilter(model, case.x0, case.P0, form=form)
+    u = lambda t: None if case.u is None else case.u[t]  # noqa: E731
+    for t in range(10):
+        kf.step(case.y[t], u(t))
+    copy = pickle.loads(pickle.dumps(kf))
+    for t in range(10, 20):
+        kf.step(case.y[t], u(t))
+        copy.step(case.y[t], u(t))
+    assert_close(copy.x, kf.x, "x")
+    assert_close(copy.P, kf.P, "P")
+    assert copy.loglik == pytest.approx(kf.loglik, rel=1e-12)
 
 
 @pytest.mark.parametrize("form", FORMS)

@@ -17,11 +17,11 @@ BENCH = json.loads((Path(__file__).resolve().parents[1] / "data" / "scipy_are_be
 DARE_CASES = [pytest.param(c, id=f"darex-{c['case']}") for c in BENCH["dare"]]
 CARE_CASES = [pytest.param(c, id=f"carex-{c['case']}") for c in BENCH["care"]]
 
-# CARE cases the Hamiltonian eigenvector method does not yet solve (issue 14, item 3: an
-# ordered Schur form): carex 10 (a closed-loop eigenvalue at -4e-8, refused as not
-# stabilizing). (Carex 8, entries 1e6, passes since the Newton-Kleinman steps run in correction
-# form and the Lyapunov solver's singularity test uses the continuous equation's own scale.)
-CARE_NOT_YET = {10}
+# CARE cases the default method may refuse: none. (CAREX 8, entries 1e6, passes since the
+# Newton-Kleinman steps run in correction form; CAREX 10, a closed-loop eigenvalue at -4e-8,
+# since a non-stabilizing Hamiltonian subspace falls back to Newton-Kleinman from a stabilizing
+# gain.)
+CARE_NOT_YET: set[int] = set()
 
 
 def _matrices(case):

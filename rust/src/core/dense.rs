@@ -311,6 +311,36 @@ pub(crate) fn transpose(bt: &mut [f64], b: &[f64], r: usize, c: usize) {
     }
 }
 
+/// `b ← L⁻¹ b` for `b[n×cols]`, `L` lower triangular (`l[n×n]`) with a nonzero diagonal.
+pub(crate) fn solve_lower(l: &[f64], b: &mut [f64], n: usize, cols: usize) {
+    for i in 0..n {
+        for k in 0..i {
+            let lik = l[i * n + k];
+            for j in 0..cols {
+                b[i * cols + j] -= lik * b[k * cols + j];
+            }
+        }
+        for j in 0..cols {
+            b[i * cols + j] /= l[i * n + i];
+        }
+    }
+}
+
+/// `b ← L'⁻¹ b` for `b[n×cols]`, `L` lower triangular (`l[n×n]`) with a nonzero diagonal.
+pub(crate) fn solve_lower_t(l: &[f64], b: &mut [f64], n: usize, cols: usize) {
+    for i in (0..n).rev() {
+        for k in i + 1..n {
+            let lki = l[k * n + i];
+            for j in 0..cols {
+                b[i * cols + j] -= lki * b[k * cols + j];
+            }
+        }
+        for j in 0..cols {
+            b[i * cols + j] /= l[i * n + i];
+        }
+    }
+}
+
 /// Replaces the square `a[n×n]` by `(a + a') / 2`.
 #[inline(always)]
 pub(crate) fn symmetrize(a: &mut [f64], n: usize) {

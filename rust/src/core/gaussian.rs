@@ -112,6 +112,12 @@ impl LoglikSum {
         self.det_exponent += e1 + e2 + e;
     }
 
+    /// Adds a step's term given as a number (the robust update forms' streaming filter).
+    pub fn add_term(&mut self, loglik_t: f64) {
+        // −½ (−2 ℓ) is ℓ exactly.
+        self.quad -= 2.0 * loglik_t;
+    }
+
     /// A sum that starts from the total `loglik` (of steps whose terms are no longer known).
     #[cfg_attr(not(feature = "python"), allow(dead_code))] // for pickling in Python
     pub fn carrying(loglik: f64) -> LoglikSum {

@@ -246,7 +246,7 @@ fn resume_filter(
 /// ``P`` are x(t|t), P(t|t); after ``predict`` they are x(t+1|t), P(t+1|t). A ``predict``
 /// without an ``update`` treats the step as missing. The results equal
 /// ``LinearGaussian.filter`` on the same data. Pickles (and copies) with its model; the copy
-/// continues the stream bit for bit.
+/// continues the stream bit for bit (a robust form's pickle to rounding).
 ///
 /// Threads: each call (``update``, ``predict``, ``step``, reading ``x``) runs whole, holding
 /// the GIL, so concurrent calls never corrupt the filter. But a stream is one sequence of
@@ -262,8 +262,9 @@ fn resume_filter(
 ///     Prior mean x(0|-1) (a scalar when n = 1).
 /// P0 : array_like, shape (n, n)
 ///     Prior covariance P(0|-1), symmetric positive semidefinite.
-/// form : {"joseph", "standard"}
-///     The covariance update, as in ``LinearGaussian.filter``.
+/// form : {"joseph", "standard", "sqrt", "ud", "information", "sequential"}
+///     The update form, as in ``LinearGaussian.filter`` (a robust form pickles with its
+///     prediction refactored: the copy continues equal to rounding).
 ///
 /// Raises
 /// ------
@@ -448,8 +449,10 @@ impl PyKalmanFilter {
 ///
 /// Parameters
 /// ----------
-/// model, x0, P0, form
+/// model, x0, P0
 ///     As for ``KalmanFilter``.
+/// form : {"joseph", "standard"}
+///     The covariance update, as in ``LinearGaussian.filter``.
 /// lag : int
 ///     The lag L >= 0.
 ///

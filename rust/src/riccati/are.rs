@@ -374,23 +374,29 @@ fn clear_of_unit_circle(sol: RiccatiSolution, limit: usize) -> Result<RiccatiSol
     Ok(sol)
 }
 
+/// The problem (a, b, q = I, r = I, s = 0), whose stabilizing solution's gain stabilizes a − bK
+/// whenever (a, b) is stabilizable (q = I makes every mode detectable).
+fn auxiliary_problem(p: &Problem) -> Problem {
+    let (n, m) = (p.a.nrows(), p.b.ncols());
+    Problem {
+        a: p.a.clone(),
+        b: p.b.clone(),
+        q: Mat::identity(n, n),
+        r: Mat::identity(m, m),
+        s: Mat::zeros(n, m),
+        e: None,
+    }
+}
+
 /// A gain K with ρ(a − bK) < 1: K = 0 when a is stable; else the gain of the stabilizing
-/// solution of the auxiliary DARE (a, b, q = I, r = I, s = 0), which exists whenever (a, b) is
-/// stabilizable (q = I makes every mode detectable) and which doubling finds from zero.
+/// solution of the auxiliary DARE ([`auxiliary_problem`]), which doubling finds from zero.
 fn stabilizing_gain(p: &Problem) -> Result<Mat<f64>> {
     let (n, m) = (p.a.nrows(), p.b.ncols());
     if shown_stable(&p.a) || spectral_radius(&p.a)? < 1.0 {
         return Ok(Mat::zeros(m, n));
     }
     let identity_m = Mat::<f64>::identity(m, m);
-    let auxiliary = Problem {
-        a: p.a.clone(),
-        b: p.b.clone(),
-        q: Mat::identity(n, n),
-        r: identity_m.clone(),
-        s: Mat::zeros(n, m),
-        e: None,
-    };
+    let auxiliary = auxiliary_problem(p);
     let (x, _) = doubling(&auxiliary, &identity_m)?;
     let k = dare_gain(&auxiliary, &x).ok_or_else(|| no_solution("no stabilizing gain: b'Xb + r is singular"))?;
     let acl = &p.a - &p.b * &k;
@@ -937,15 +943,34 @@ const CARE_NEWTON_STEPS: usize = 5;
 
 /// Solves the CARE (SciPy's `solve_continuous_are(a, b, q, r, e, s)`): the stable invariant
 /// subspace of the Hamiltonian matrix, refined by Newton–Kleinman steps in correction form (one
-/// continuous Lyapunov solve each, kept while the residual decreases). Needs r invertible.
+/// continuous Lyapunov solve each, kept while the residual decreases). When that subspace gives
+/// no stabilizing solution (eigenvalues of the Hamiltonian within rounding of the imaginary
+/// axis, SciPy's CAREX 10), Newton–Kleinman from a stabilizing gain, which converges to the
+/// stabilizing solution whenever there is one (Kleinman 1968). Needs r invertible.
 pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSolution> {
     let RiccatiProblem { a, b, q, r, e, s, n, m } = problem;
     let p = checked_problem(a, b, q, r, e, s, n, m)?;
     let r_inv =
         invert(&p.r).ok_or_else(|| Error::arg("r", "must be invertible for the continuous Riccati equation"))?;
-    let rs = &r_inv * p.s.transpose();
+    let first = hamiltonian_solution(&p, &r_inv).and_then(|x| finish_care(&p, &r_inv, x, 0, "hamiltonian"));
+    let Err(first_error) = first else { return first };
+    let first_problem = first_error.to_string();
+    let fallback = care_stabilizing_gain(&p)
+        .and_then(|k0| kleinman(&p, &r_inv, k0, KLEINMAN_STEPS))
+        .and_then(|(x, iterations)| finish_care(&p, &r_inv, x, iterations, "newton"));
+    fallback
+        .map_err(|_| no_solution(format!("{first_problem}; Newton–Kleinman from a stabilizing gain found none either")))
+}
+
+/// Newton–Kleinman steps of the fallback, at most.
+const KLEINMAN_STEPS: usize = 60;
+
+/// The solution from the stable invariant subspace of the Hamiltonian matrix (symmetrized).
+fn hamiltonian_solution(p: &Problem, r_inv: &Mat<f64>) -> Result<Mat<f64>> {
+    let n = p.a.nrows();
+    let rs = r_inv * p.s.transpose();
     let a0 = &p.a - &p.b * &rs;
-    let g = &p.b * &r_inv * p.b.transpose();
+    let g = &p.b * r_inv * p.b.transpose();
     let q0 = &p.q - &p.s * &rs;
     let mut ham = Mat::<f64>::zeros(2 * n, 2 * n);
     for i in 0..n {
@@ -956,26 +981,90 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
             ham[(n + i, n + j)] = -a0[(j, i)];
         }
     }
-    let mut x = sym(&stable_subspace(&ham, n, |l| l.re < 0.0, "in the open left half-plane")?);
-    let care_gain = |x: &Mat<f64>| &r_inv * (p.b.transpose() * x + p.s.transpose());
-    // a'X + Xa − (Xb + s) r⁻¹ (b'X + s') + q = a'X + Xa − K'rK + q with K the gain at X.
-    let care_residual =
-        |x: &Mat<f64>, k: &Mat<f64>| sym(&(p.a.transpose() * x + x * &p.a - k.transpose() * &p.r * k + &p.q));
-    let mut iterations = 0;
-    let mut res = care_residual(&x, &care_gain(&x));
+    Ok(sym(&stable_subspace(&ham, n, |l| l.re < 0.0, "in the open left half-plane")?))
+}
+
+/// K = r⁻¹ (b'X + s').
+fn care_gain(p: &Problem, r_inv: &Mat<f64>, x: &Mat<f64>) -> Mat<f64> {
+    r_inv * (p.b.transpose() * x + p.s.transpose())
+}
+
+/// a'X + Xa − (Xb + s) r⁻¹ (b'X + s') + q = a'X + Xa − K'rK + q with K the gain at X.
+fn care_residual(p: &Problem, x: &Mat<f64>, k: &Mat<f64>) -> Mat<f64> {
+    sym(&(p.a.transpose() * x + x * &p.a - k.transpose() * &p.r * k + &p.q))
+}
+
+/// A gain K with a − bK Hurwitz: zero for a Hurwitz a, else the gain of the auxiliary CARE
+/// (a, b, q = I, r = I, s = 0), whose Hamiltonian has no imaginary eigenvalues when (a, b) is
+/// stabilizable.
+fn care_stabilizing_gain(p: &Problem) -> Result<Mat<f64>> {
+    let (n, m) = (p.a.nrows(), p.b.ncols());
+    let largest_real =
+        |a: &Mat<f64>| -> Result<f64> { Ok(eigenvalues(a)?.iter().map(|l| l.0).fold(f64::NEG_INFINITY, f64::max)) };
+    if largest_real(&p.a)? < 0.0 {
+        return Ok(Mat::zeros(m, n));
+    }
+    let identity_m = Mat::<f64>::identity(m, m);
+    let auxiliary = auxiliary_problem(p);
+    let k = care_gain(&auxiliary, &identity_m, &hamiltonian_solution(&auxiliary, &identity_m)?);
+    if largest_real(&(&p.a - &p.b * &k))? >= 0.0 {
+        return Err(no_solution("(a, b) is not stabilizable: no gain makes a − bK Hurwitz"));
+    }
+    Ok(k)
+}
+
+/// Newton–Kleinman from the stabilizing gain `k0`: X(k) solves
+/// (a − bK)'X + X(a − bK) + q − sK − K's' + K'rK = 0, then K = r⁻¹ (b'X + s'); returns X and
+/// the steps taken.
+fn kleinman(p: &Problem, r_inv: &Mat<f64>, k0: Mat<f64>, max_steps: usize) -> Result<(Mat<f64>, usize)> {
+    let n = p.a.nrows();
+    let mut k = k0;
+    let mut x = Mat::<f64>::zeros(n, n);
+    for step in 1..=max_steps {
+        let acl = &p.a - &p.b * &k;
+        let sk = &p.s * &k;
+        let c = -sym(&(&p.q - &sk - sk.transpose() + k.transpose() * &p.r * &k));
+        let next = solve_continuous_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&c), n)
+            .map_err(|_| no_solution("a Newton–Kleinman step met a closed loop with λ_i + λ_j = 0"))?;
+        let next = sym(&to_mat(&next, n));
+        let change = (&next - &x).norm_max();
+        x = next;
+        k = care_gain(p, r_inv, &x);
+        if !all_finite(&x) {
+            return Err(no_solution("Newton–Kleinman diverged"));
+        }
+        if change <= 1e-14 * x.norm_max().max(1e-300) {
+            return Ok((x, step));
+        }
+    }
+    Ok((x, max_steps))
+}
+
+/// Newton–Kleinman steps in correction form from `x`, the stabilizing check and the residual.
+fn finish_care(
+    p: &Problem,
+    r_inv: &Mat<f64>,
+    x: Mat<f64>,
+    steps: usize,
+    method: &'static str,
+) -> Result<RiccatiSolution> {
+    let n = p.a.nrows();
+    let mut x = x;
+    let mut iterations = steps;
+    let mut res = care_residual(p, &x, &care_gain(p, r_inv, &x));
     for _ in 0..CARE_NEWTON_STEPS {
         // Newton–Kleinman in correction form: (a − bK)'Δ + Δ(a − bK) = −Res(X), X ← X + Δ.
         // Solving for the correction, not for X itself, makes the Lyapunov solve's rounding
         // relative to Δ (as the DARE's polish): with entries of 1e6 (SciPy's CAREX 8) the
         // plain step stalls at residuals 40× SciPy's tolerance.
-        let k = care_gain(&x);
+        let k = care_gain(p, r_inv, &x);
         let acl = &p.a - &p.b * &k;
         let Ok(delta) = solve_continuous_lyapunov(&from_mat(&acl.transpose().to_owned()), &from_mat(&(-&res)), n)
         else {
             break;
         };
         let next = sym(&(&x + to_mat(&delta, n)));
-        let next_res = care_residual(&next, &care_gain(&next));
+        let next_res = care_residual(p, &next, &care_gain(p, r_inv, &next));
         let (new_size, old_size) = (next_res.norm_max(), res.norm_max());
         if new_size.is_nan() || new_size >= old_size {
             break;
@@ -987,7 +1076,7 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
             break;
         }
     }
-    let k = care_gain(&x);
+    let k = care_gain(p, r_inv, &x);
     let acl = &p.a - &p.b * &k;
     let closed_loop_eigenvalues = eigenvalues(&acl)?;
     let max_re = closed_loop_eigenvalues.iter().map(|l| l.0).fold(f64::NEG_INFINITY, f64::max);
@@ -996,9 +1085,9 @@ pub fn solve_continuous_are(problem: RiccatiProblem<'_>) -> Result<RiccatiSoluti
             "the solution found is not stabilizing (largest closed-loop real part {max_re:.6})"
         )));
     }
-    let residual = care_residual(&x, &k).norm_max() / x.norm_max().max(1.0);
+    let residual = care_residual(p, &x, &k).norm_max() / x.norm_max().max(1.0);
     let eigenvalues = OnceLock::from(closed_loop_eigenvalues);
-    Ok(RiccatiSolution { eigenvalues, ..RiccatiSolution::of(&p, &x, k, &acl, residual, iterations, "hamiltonian") })
+    Ok(RiccatiSolution { eigenvalues, ..RiccatiSolution::of(p, &x, k, &acl, residual, iterations, method) })
 }
 
 #[cfg(test)]

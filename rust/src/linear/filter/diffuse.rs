@@ -21,6 +21,7 @@
 //! over from x(d|d−1), P_*(d|d−1): d is the number of diffuse steps.
 
 use super::outputs::FilterOutputs;
+use crate::core::dense::{solve_lower, symmetrize};
 use crate::core::Series;
 use crate::error::{Error, Result};
 use crate::linear::model::{LinearGaussian, StepView};
@@ -155,8 +156,8 @@ impl State {
             let l = cholesky(&r_oo, mo).ok_or_else(|| {
                 Error::arg_at("R", t, "the exact diffuse filter processes the observed components one at a time and needs their R positive definite (or diagonal)")
             })?;
-            forward_solve(&l, &mut rows, mo, n);
-            forward_solve(&l, &mut e, mo, 1);
+            solve_lower(&l, &mut rows, mo, n);
+            solve_lower(&l, &mut e, mo, 1);
             let log_det = (0..mo).map(|a| l[a * mo + a].ln()).sum::<f64>();
             (vec![1.0; mo], Some(l), log_det)
         };
@@ -301,34 +302,9 @@ fn congruence(f: &[f64], p: &[f64], n: usize) -> Vec<f64> {
     out
 }
 
-fn symmetrize(a: &mut [f64], n: usize) {
-    for i in 0..n {
-        for j in 0..i {
-            let v = 0.5 * (a[i * n + j] + a[j * n + i]);
-            a[i * n + j] = v;
-            a[j * n + i] = v;
-        }
-    }
-}
-
 /// The lower Cholesky factor of `a (n × n)`, or `None` if not positive definite.
 fn cholesky(a: &[f64], n: usize) -> Option<Vec<f64>> {
     let mut l = vec![0.0; n * n];
     crate::nonlinear::cholesky(&mut l, a, n).ok()?;
     Some(l)
-}
-
-/// `b ← L⁻¹ b` for `b (n × cols)`, L lower triangular.
-fn forward_solve(l: &[f64], b: &mut [f64], n: usize, cols: usize) {
-    for i in 0..n {
-        for k in 0..i {
-            let lik = l[i * n + k];
-            for j in 0..cols {
-                b[i * cols + j] -= lik * b[k * cols + j];
-            }
-        }
-        for j in 0..cols {
-            b[i * cols + j] /= l[i * n + i];
-        }
-    }
 }

@@ -37,10 +37,9 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`. The model may be owned, borrowed
     /// (`&LinearGaussian`) or shared (`Arc<LinearGaussian>`).
     pub fn new(model: M, x0: &[f64], p0: &[f64], form: UpdateForm) -> Result<Self> {
-        form.require_covariance_form("the streaming KalmanFilter")?;
         let lg = model.borrow();
         check_prior(lg.n_states(), x0, p0)?;
-        let ws = StreamWorkspace::new(lg.n_states(), lg.n_obs(), lg.n_inputs(), x0, p0);
+        let ws = StreamWorkspace::new(form, lg.n_states(), lg.n_obs(), lg.n_inputs(), x0, p0)?;
         Ok(KalmanFilter { model, ws, form, t: 0, updated: false, loglik: LoglikSum::default() })
     }
 
@@ -92,7 +91,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
     pub fn predict(&mut self, u: Option<&[f64]>) -> Result<()> {
         self.check_input(u, "B", self.model().matrices().b.is_some())?;
         let sys = self.model.borrow().at(self.t);
-        self.ws.0.predict(&sys, u, self.updated);
+        self.ws.0.predict(&sys, u, self.updated, self.t)?;
         self.t += 1;
         self.updated = false;
         Ok(())
@@ -225,7 +224,6 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
         t: usize,
         loglik: LoglikSum,
     ) -> Result<Self> {
-        form.require_covariance_form("the streaming KalmanFilter")?;
         let lg = model.borrow();
         let (n, m, k, steps) = (lg.n_states(), lg.n_obs(), lg.n_inputs(), lg.steps());
         for (arg, values, len) in [("x_pred", x_pred, n), ("P_pred", p_pred, n * n)] {
@@ -241,7 +239,7 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
                 return Err(Error::arg("t", format!("is {t}, past the {tm} steps of the model's per-step matrices")));
             }
         }
-        let ws = StreamWorkspace::new(n, m, k, x_pred, p_pred);
+        let ws = StreamWorkspace::new(form, n, m, k, x_pred, p_pred)?;
         Ok(KalmanFilter { model, ws, form, t, updated: false, loglik })
     }
 }
@@ -251,9 +249,9 @@ impl<M: Borrow<LinearGaussian>> KalmanFilter<M> {
 /// the compile-time loop ~600), with the arithmetic of
 /// the loops chosen when it was made (fused sizes run with FMA enabled, `run_out_of_line`). Boxed
 /// behind a trait so that the filter has one type whatever its sizes.
-trait Stream: std::fmt::Debug + Send + Sync {
+pub(super) trait Stream: std::fmt::Debug + Send + Sync {
     fn update(&mut self, sys: &StepView<'_>, y: &[f64], u: Option<&[f64]>, form: UpdateForm, t: usize) -> Result<()>;
-    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool);
+    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool, t: usize) -> Result<()>;
     fn add_loglik(&self, sum: &mut LoglikSum);
     fn loglik_t(&self) -> f64;
     fn set_filtered(&mut self, x: &[f64], p: &[f64]);
@@ -276,7 +274,7 @@ where
             || Workspace::update(self, sys, y, u, form, t),
         )
     }
-    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool) {
+    fn predict(&mut self, sys: &StepView<'_>, u: Option<&[f64]>, updated: bool, _t: usize) -> Result<()> {
         run_out_of_line::<D, _>(
             #[inline(always)]
             || {
@@ -285,7 +283,8 @@ where
                 }
                 Workspace::predict(self, sys, u)
             },
-        )
+        );
+        Ok(())
     }
     fn add_loglik(&self, sum: &mut LoglikSum) {
         Workspace::add_loglik(self, sum)
@@ -329,9 +328,13 @@ impl Clone for StreamWorkspace {
 }
 
 impl StreamWorkspace {
-    fn new(n: usize, m: usize, k: usize, x0: &[f64], p0: &[f64]) -> Self {
+    /// The covariance forms' workspace, or a robust form's recursion (`forms`).
+    fn new(form: UpdateForm, n: usize, m: usize, k: usize, x0: &[f64], p0: &[f64]) -> Result<Self> {
+        if !form.is_covariance_form() {
+            return Ok(StreamWorkspace(super::forms::stream::new_stream(form, n, m, k, x0, p0)?));
+        }
         let fused = kernel() == Kernel::Avx2Fma;
-        StreamWorkspace(with_dims!(n, m, |d| new_stream(d, fused, k, x0, p0)))
+        Ok(StreamWorkspace(with_dims!(n, m, |d| new_stream(d, fused, k, x0, p0))))
     }
 }
 

@@ -296,6 +296,7 @@ pub struct FixedLagSmoother {
 impl FixedLagSmoother {
     /// Starts from the prior `(x0, P0) = x̂(0|−1), P(0|−1)`.
     pub fn new(model: Arc<LinearGaussian>, x0: &[f64], p0: &[f64], lag: usize, form: UpdateForm) -> Result<Self> {
+        form.require_covariance_form("the fixed-lag smoother")?;
         let (n, m) = (model.n_states(), model.n_obs());
         let filter = KalmanFilter::new(model, x0, p0, form)?;
         Ok(FixedLagSmoother { filter, window: LagWindow::new(n, m, lag) })

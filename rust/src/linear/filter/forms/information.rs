@@ -21,6 +21,7 @@ use crate::core::dense::{lu_in_place, lu_solve};
 use crate::core::dims::{Buf, Dims};
 use crate::error::{Error, Result};
 
+#[derive(Debug, Clone)]
 pub(super) struct Information<D: Dims> {
     d: D,
     /// Y and ŷ.

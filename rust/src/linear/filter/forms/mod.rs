@@ -62,6 +62,7 @@ mod information;
 mod sequential;
 pub(crate) mod smoother;
 mod sqrt;
+pub(super) mod stream;
 mod ud;
 
 pub(crate) use smoother::smooth_square_root;
@@ -69,6 +70,7 @@ pub(crate) use smoother::smooth_square_root;
 use super::outputs::FilterOutputs;
 use super::step::overflowed;
 use super::Run;
+use crate::core::dense::{solve_lower, solve_lower_t};
 use crate::core::dims::{Dims, Dyn, Fixed};
 use crate::core::gaussian::UpdateForm;
 use crate::core::isa::run_best;
@@ -208,6 +210,7 @@ fn drive<D: Dims, R: Recursion<D>>(
 
 /// The observed components of y(t) prepared for scalar updates, and the time update's F̃, Q̃
 /// and input shift (see the module docs). Buffers sized once for (n, m, k).
+#[derive(Debug, Clone)]
 struct Measurement {
     n: usize,
     m: usize,
@@ -325,7 +328,7 @@ impl Measurement {
         // ỹ = L⁻¹ (y_o − D_o u), or y_o − D_o u itself.
         self.target[..mo].copy_from_slice(&self.y_minus_du[..mo]);
         if self.decorrelated {
-            forward_solve(&self.l, &mut self.target[..mo], mo, 1);
+            solve_lower(&self.l, &mut self.target[..mo], mo, 1);
         }
         Ok(!same)
     }
@@ -347,7 +350,7 @@ impl Measurement {
             crate::nonlinear::cholesky(&mut self.l, r_oo, mo).map_err(|_| {
                 Error::arg_at("R", t, "the update forms process the observed components one at a time and need their R positive definite when it is not diagonal")
             })?;
-            forward_solve(&self.l, &mut self.rows[..mo * n], mo, n);
+            solve_lower(&self.l, &mut self.rows[..mo * n], mo, n);
             self.variances[..mo].fill(1.0);
             self.log_det_l = (0..mo).map(|a| self.l[a * mo + a].ln()).sum();
         } else {
@@ -380,8 +383,8 @@ impl Measurement {
                 g_t[a * n + r] = nn[r * m + i];
             }
         }
-        forward_solve(&self.l_g, g_t, mo, n);
-        backward_solve_t(&self.l_g, g_t, mo, n);
+        solve_lower(&self.l_g, g_t, mo, n);
+        solve_lower_t(&self.l_g, g_t, mo, n);
         for r in 0..n {
             for a in 0..mo {
                 self.g[r * mo + a] = g_t[a * n + r];
@@ -531,8 +534,8 @@ impl Derived {
             return;
         }
         for b in [&mut self.k_t, &mut self.kp_t] {
-            forward_solve(&self.l, &mut b[..mo * n], mo, n);
-            backward_solve_t(&self.l, &mut b[..mo * n], mo, n);
+            solve_lower(&self.l, &mut b[..mo * n], mo, n);
+            solve_lower_t(&self.l, &mut b[..mo * n], mo, n);
         }
         for (a, i) in (0..m).filter(observed).enumerate() {
             for r in 0..n {
@@ -546,36 +549,6 @@ impl Derived {
 #[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// `b ← L⁻¹ b` for `b (n × cols)`, L lower triangular.
-fn forward_solve(l: &[f64], b: &mut [f64], n: usize, cols: usize) {
-    for i in 0..n {
-        for k in 0..i {
-            let lik = l[i * n + k];
-            for j in 0..cols {
-                b[i * cols + j] -= lik * b[k * cols + j];
-            }
-        }
-        for j in 0..cols {
-            b[i * cols + j] /= l[i * n + i];
-        }
-    }
-}
-
-/// `b ← L'⁻¹ b` for `b (n × cols)`, L lower triangular.
-fn backward_solve_t(l: &[f64], b: &mut [f64], n: usize, cols: usize) {
-    for i in (0..n).rev() {
-        for k in i + 1..n {
-            let lki = l[k * n + i];
-            for j in 0..cols {
-                b[i * cols + j] -= lki * b[k * cols + j];
-            }
-        }
-        for j in 0..cols {
-            b[i * cols + j] /= l[i * n + i];
-        }
-    }
 }
 
 /// The lower factor L of a symmetric positive semidefinite `a (n × n)` with a = L L'

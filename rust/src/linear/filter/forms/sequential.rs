@@ -13,6 +13,7 @@ use crate::core::dense::{mul, mul_bt_sym};
 use crate::core::dims::{Buf, Dims};
 use crate::error::Result;
 
+#[derive(Debug, Clone)]
 pub(super) struct Sequential<D: Dims> {
     d: D,
     x: D::Vector,

@@ -24,6 +24,7 @@
 
 use super::sqrt::{lq_lower, positive_diagonal, SquareRoot};
 use super::{drive, not_psd, psd_cholesky, FactorStore, Measurement};
+use crate::core::dense::{solve_lower, solve_lower_t};
 use crate::core::dims::{Dims, Dyn, Fixed};
 use crate::core::isa::run_best;
 use crate::error::Result;
@@ -169,14 +170,14 @@ impl Backward {
         }
         // W = S(t+1|t)⁻¹ F̃ S(t|t); M = S(t|t) W'; J = M S(t+1|t)⁻¹, i.e. S(t+1|t)' J' = M'.
         self.w.copy_from_slice(&self.fs);
-        forward_solve(s_pred, &mut self.w, n);
+        solve_lower(s_pred, &mut self.w, n, n);
         // J' (in `left` as scratch) = M' = W S(t|t)'.
         for r in 0..n {
             for c in 0..n {
                 self.left[r * n + c] = (0..=c).map(|k| self.w[r * n + k] * s_filt[c * n + k]).sum();
             }
         }
-        backward_solve_t(s_pred, &mut self.left, n);
+        solve_lower_t(s_pred, &mut self.left, n, n);
         for r in 0..n {
             for c in 0..n {
                 self.j[r * n + c] = self.left[c * n + r];
@@ -246,14 +247,4 @@ fn form_covariance(s: &[f64], p: &mut [f64], n: usize) {
             p[j * n + i] = v;
         }
     }
-}
-
-/// `b ← S⁻¹ b` for `b (n × n)`, S lower triangular with a nonzero diagonal.
-fn forward_solve(s: &[f64], b: &mut [f64], n: usize) {
-    super::forward_solve(s, b, n, n);
-}
-
-/// `b ← S'⁻¹ b` for `b (n × n)`.
-fn backward_solve_t(s: &[f64], b: &mut [f64], n: usize) {
-    super::backward_solve_t(s, b, n, n);
 }

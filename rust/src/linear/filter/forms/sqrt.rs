@@ -17,6 +17,7 @@ use super::{innovation_variance, not_psd, psd_cholesky, Measurement, Recursion, 
 use crate::core::dims::{Buf, Dims};
 use crate::error::Result;
 
+#[derive(Debug, Clone)]
 pub(super) struct SquareRoot<D: Dims> {
     d: D,
     x: D::Vector,

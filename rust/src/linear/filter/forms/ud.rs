@@ -8,6 +8,7 @@ use super::{innovation_variance, not_psd, Measurement, Recursion, HALF_LOG_2PI};
 use crate::core::dims::{Buf, Dims};
 use crate::error::Result;
 
+#[derive(Debug, Clone)]
 pub(super) struct UD<D: Dims> {
     d: D,
     x: D::Vector,
