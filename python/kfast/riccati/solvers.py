@@ -89,8 +89,9 @@ def _reduce_by_e(name: str, e: Optional[ArrayLike], a: np.ndarray, q: np.ndarray
         raise _kfast.KfastError(f"e: expected shape ({n}, {n}) like a, got {em.shape}")
     if not np.all(np.isfinite(em)):
         raise _kfast.KfastError("e: contains a non-finite value")
-    if np.linalg.cond(em) > 1e12:
-        raise _kfast.KfastError(f"e: must be nonsingular for {name} (condition number {np.linalg.cond(em):.3g})")
+    condition = np.linalg.cond(em)
+    if condition > 1e12:
+        raise _kfast.KfastError(f"e: must be nonsingular for {name} (condition number {condition:.3g})")
     ea = np.linalg.solve(em, a)
     eq = np.linalg.solve(em, np.linalg.solve(em, q.conj().T).conj().T)
     return ea, eq
@@ -198,31 +199,29 @@ def dare(
     if method not in DARE_METHODS:
         raise _kfast.KfastError(f"method: expected one of {DARE_METHODS}, got {method!r}")
     if _is_complex(a, b, q, r, e, s):
-        return _complex_riccati(_kfast.dare, a, b, q, r, e, s, cast(DareMethod, method), eigenvalues, discrete=True)
+        return _complex_riccati(a, b, q, r, e, s, cast(DareMethod, method), eigenvalues)
     args = (_matrix("a", a), _matrix("b", b), _matrix("q", q), _matrix("r", r), _optional("e", e), _optional("s", s))
     return _kfast.dare(*args, cast(DareMethod, method), eigenvalues)
 
 
-def _complex_riccati(solver: Any, a, b, q, r, e, s, *options: Any, discrete: bool) -> dict:
-    """A complex DARE or CARE through its real embedding; x Hermitian, gain complex, the
-    closed-loop eigenvalues those of the complex closed loop."""
+def _complex_riccati(a, b, q, r, e, s, method: Optional[DareMethod], eigenvalues: bool = True) -> dict:
+    """A complex DARE (``method`` given) or CARE (``method=None``) through its real embedding;
+    x Hermitian, gain complex, the closed-loop eigenvalues those of the complex closed loop."""
     am, bm, qm, rm = (_complex_matrix(k, v) for k, v in zip("abqr", (a, b, q, r)))
     em = None if e is None else _complex_matrix("e", e)
     sm = None if s is None else _complex_matrix("s", s)
-    n, k = am.shape[0], bm.shape[1] if bm.ndim == 2 else 1
+    n, k = am.shape[0], bm.shape[1]
     for name, m in (("q", qm), ("r", rm)):
         if m.shape[0] == m.shape[1] and not np.allclose(m, m.conj().T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(m).max())):
             raise _kfast.KfastError(f"{name}: must be Hermitian (equal to its conjugate transpose)")
     real = [_realify(m) for m in (am, bm, qm, rm, em, sm)]
-    if discrete:
-        out = dict(solver(*real, *options[:1], False))
-    else:
-        out = dict(solver(*real))
+    discrete = method is not None
+    solver: Any = _kfast.dare if discrete else _kfast.care
+    out = dict(solver(*real, method, False) if discrete else solver(*real))
     x = _complexify(out["x"], n, n)
     out["x"] = (x + x.conj().T) / 2
     out["gain"] = _complexify(out["gain"], k, n)
-    want_eigenvalues = options[1] if discrete else True
-    if want_eigenvalues:
+    if eigenvalues:
         closed = am - bm @ out["gain"]
         if em is not None:
             closed = closed @ np.linalg.inv(em) if discrete else np.linalg.solve(em, closed)
@@ -301,7 +300,7 @@ def care(
     """``solve_continuous_are`` with the details (x, gain r^-1 (b'Xe + s'), closed-loop
     eigenvalues, residual, iterations)."""
     if _is_complex(a, b, q, r, e, s):
-        return _complex_riccati(_kfast.care, a, b, q, r, e, s, discrete=False)
+        return _complex_riccati(a, b, q, r, e, s, None)
     return _kfast.care(_matrix("a", a), _matrix("b", b), _matrix("q", q), _matrix("r", r), _optional("e", e), _optional("s", s))
 
 

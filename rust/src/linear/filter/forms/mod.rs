@@ -159,12 +159,13 @@ fn drive<D: Dims, R: Recursion<D>>(
     let constant = run.model.steps().is_none();
     // The innovations of all components: an output, and what the derived outputs read.
     let want_innov = out.innov.is_some() || derived.needed();
+    // P(t|t−1): an output, and what the derived outputs are formed from.
+    let want_prior = out.p_pred.is_some() || derived.needed();
     let mut total = 0.0;
     let mut p = vec![0.0; n * n];
     for t in run.start..run.y.steps() {
         let sys = run.model.at(t);
         let (y, u) = (run.y.row(t), run.u.map(|u| u.row(t)));
-        let want_prior = out.p_pred.is_some() || derived.needed();
         if want_prior {
             form.covariance(&mut p);
         }

@@ -22,7 +22,7 @@
 //! pseudo-inverse as the covariance-form smoother does, forming P(t|t) and P(t+1|t) for that
 //! step only.
 
-use super::sqrt::{lq_lower, positive_diagonal, SquareRoot};
+use super::sqrt::{lower_product, lq_lower, positive_diagonal, SquareRoot};
 use super::{drive, not_psd, psd_cholesky, FactorStore, Measurement};
 use crate::core::dense::{solve_lower, solve_lower_t};
 use crate::core::dims::{Dims, Dyn, Fixed};
@@ -84,7 +84,7 @@ fn smooth_in<D: Dims>(
     // S(T−1|T−1) = S(T−1|T−1); then backwards.
     let mut s_next = filt[(steps - 1) * nn..][..nn].to_vec();
     if let Some(p) = p_smooth.as_deref_mut() {
-        form_covariance(&s_next, &mut p[(steps - 1) * nn..][..nn], n);
+        lower_product(&s_next, &mut p[(steps - 1) * nn..][..nn], n);
     }
     if let Some(l) = p_lag1.as_deref_mut() {
         l[..nn].fill(0.0);
@@ -99,7 +99,8 @@ fn smooth_in<D: Dims>(
         }
         if let Some(l) = p_lag1.as_deref_mut() {
             // Cov(x(t+1), x(t) | all) = P(t+1|T−1) J(t)'.
-            let p_next = covariance(&s_next, n);
+            let p_next = &mut back.p_scratch;
+            lower_product(&s_next, p_next, n);
             for i in 0..n {
                 for k in 0..n {
                     l[(t + 1) * nn + i * n + k] = (0..n).map(|c| p_next[i * n + c] * back.j[k * n + c]).sum();
@@ -108,7 +109,7 @@ fn smooth_in<D: Dims>(
         }
         back.factor(s_filt, &mut s_next);
         if let Some(p) = p_smooth.as_deref_mut() {
-            form_covariance(&s_next, &mut p[t * nn..][..nn], n);
+            lower_product(&s_next, &mut p[t * nn..][..nn], n);
         }
     }
     Ok(loglik)
@@ -127,6 +128,8 @@ struct Backward {
     left: Vec<f64>,
     right: Vec<f64>,
     f_tilde: Vec<f64>,
+    /// P(t+1|T−1) formed for the lag-one covariance.
+    p_scratch: Vec<f64>,
 }
 
 impl Backward {
@@ -143,6 +146,7 @@ impl Backward {
             left: vec![0.0; n * n],
             right: vec![0.0; 2 * n * n],
             f_tilde: vec![0.0; n * n],
+            p_scratch: vec![0.0; n * n],
         }
     }
 
@@ -190,7 +194,8 @@ impl Backward {
     #[cold]
     fn gain_by_pseudo_inverse(&mut self, t: usize, s_filt: &[f64], s_pred: &[f64]) -> Result<()> {
         let n = self.n;
-        let p_pred = covariance(s_pred, n);
+        let mut p_pred = vec![0.0; n * n];
+        lower_product(s_pred, &mut p_pred, n);
         // F̃ P(t|t) = (F̃ S) S'.
         let mut jt: Vec<f64> = (0..n * n)
             .map(|rc| {
@@ -228,23 +233,5 @@ impl Backward {
         lq_lower(&mut self.left, &mut self.right, n, 2 * n);
         positive_diagonal(&mut self.left, n);
         s_next.copy_from_slice(&self.left);
-    }
-}
-
-/// S S' for a lower triangular S.
-fn covariance(s: &[f64], n: usize) -> Vec<f64> {
-    let mut p = vec![0.0; n * n];
-    form_covariance(s, &mut p, n);
-    p
-}
-
-/// `p ← S S'` for a lower triangular S.
-fn form_covariance(s: &[f64], p: &mut [f64], n: usize) {
-    for i in 0..n {
-        for j in 0..=i {
-            let v: f64 = (0..=j).map(|k| s[i * n + k] * s[j * n + k]).sum();
-            p[i * n + j] = v;
-            p[j * n + i] = v;
-        }
     }
 }

@@ -60,14 +60,7 @@ impl<D: Dims> Recursion<D> for SquareRoot<D> {
     }
 
     fn covariance(&self, p: &mut [f64]) {
-        let (n, s) = (self.d.n(), self.s.get());
-        for i in 0..n {
-            for j in 0..=i {
-                let v: f64 = (0..=j).map(|k| s[i * n + k] * s[j * n + k]).sum();
-                p[i * n + j] = v;
-                p[j * n + i] = v;
-            }
-        }
+        lower_product(self.s.get(), p, self.d.n());
     }
 
     #[inline(always)]
@@ -187,6 +180,18 @@ pub(super) fn lq_lower(a: &mut [f64], b: &mut [f64], n: usize, w: usize) {
             a[i * n + j] = 0.0;
         }
         b[i * w..][..w].fill(0.0);
+    }
+}
+
+/// `p ← S S'` for a lower triangular `s` (n × n): one triangle, mirrored.
+#[inline(always)]
+pub(super) fn lower_product(s: &[f64], p: &mut [f64], n: usize) {
+    for i in 0..n {
+        for j in 0..=i {
+            let v: f64 = (0..=j).map(|k| s[i * n + k] * s[j * n + k]).sum();
+            p[i * n + j] = v;
+            p[j * n + i] = v;
+        }
     }
 }
 
