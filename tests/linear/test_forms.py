@@ -335,3 +335,42 @@ def test_unknown_form_lists_the_choices():
     model = kfast.LinearGaussian(F=0.9, H=1.0, Q=1.0, R=1.0)
     with pytest.raises(ValueError, match="sequential"):
         model.filter(np.ones(5), 0.0, 1.0, form="cholesky")
+
+
+@pytest.mark.parametrize("seed, missing, correlated_R", [(0, False, False), (1, True, False), (2, True, True)])
+def test_information_form_diffuse_start_is_the_information_filter_from_y0(seed, missing, correlated_R):
+    """form="information" with P0_inf is the information filter started at Y0 = lim (P0 + k
+    P0_inf)^-1 (P0^-1 = 0 in the diffuse directions): once Y is nonsingular the estimates are
+    the pure information recursion's, and the diffuse log-likelihood is the one computed from
+    information quantities alone (reference.forms.information_filter_diffuse)."""
+    from kfast.reference.forms import information_filter_diffuse
+    from test_diffuse import _mixed_model
+
+    model, y, x0, P0, P_inf = _mixed_model(seed, correlated_R=correlated_R)
+    if missing:
+        y[0, 1] = y[2] = y[7, 0] = np.nan
+    res = model.filter(y, x0, P0, P0_inf=P_inf, form="information")
+    ref = information_filter_diffuse(model.F, model.H, model.Q, model.R, y, x0, P0, P_inf)
+    assert res.loglik == pytest.approx(ref["loglik"], rel=1e-10)
+    known = ref["identified"]
+    assert known[res.n_diffuse:].all() and known.sum() >= len(y) - res.n_diffuse
+    for name in ["x_filt", "P_filt"]:
+        assert_close(getattr(res, name)[known], ref[name][known], name, rtol=1e-8)
+    ahead = ~np.isnan(ref["x_pred"][:, 0])
+    for name in ["x_pred", "P_pred"]:
+        assert_close(getattr(res, name)[ahead], ref[name][ahead], name, rtol=1e-8)
+
+
+def test_information_form_fully_diffuse_start():
+    """P0 = 0, P0_inf = I: the textbook information filter with Y0 = P0^-1 = 0."""
+    from kfast.reference.forms import information_filter_diffuse
+
+    trend = kfast.models.local_linear_trend(0.5, 0.1, irregular=1.0)
+    y = (np.sin(np.arange(40) / 5.0) + np.arange(40) * 0.1)[:, None]
+    y[[1, 17]] = np.nan
+    res = trend.filter(y, np.zeros(2), np.zeros((2, 2)), P0_inf=np.eye(2), form="information")
+    ref = information_filter_diffuse(trend.F, trend.H, trend.Q, trend.R, y, np.zeros(2), np.zeros((2, 2)), np.eye(2))
+    assert res.n_diffuse == 3 and not ref["identified"][:2].any() and ref["identified"][2:].all()
+    assert res.loglik == pytest.approx(ref["loglik"], rel=1e-10)
+    assert_close(res.x_filt[2:], ref["x_filt"][2:], "x_filt", rtol=1e-9)
+    assert_close(res.P_filt[2:], ref["P_filt"][2:], "P_filt", rtol=1e-9)

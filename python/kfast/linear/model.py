@@ -500,7 +500,9 @@ class LinearGaussian:
             Lemma 6.4): "sqrt" moves a Cholesky factor of P by Givens and Householder
             transformations and never forms P (Söderström Sec. 6.8.1); "ud" keeps
             P = U D U' (Bierman's measurement update, Thornton's time update); "information"
-            keeps Y = P^-1 and Y x (needs P0, R and F invertible); "sequential" updates P one
+            keeps Y = P^-1 and Y x (needs R and F invertible, and P0 unless ``P0_inf``
+            gives the diffuse case P0^-1 = 0: the exact diffuse steps supply the outputs
+            while Y is singular); "sequential" updates P one
             scalar at a time, inverting no matrix. They form P, S and the gains only for the
             outputs asked for; ``converge_tol`` and ``steady_state`` need a covariance form.
         steady_state : bool

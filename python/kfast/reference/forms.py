@@ -17,7 +17,14 @@ import numpy as np
 
 from kfast.reference.filter import _at
 
-__all__ = ["square_root_filter", "ud_filter", "information_filter", "sequential_filter", "ud_factor"]
+__all__ = [
+    "square_root_filter",
+    "ud_filter",
+    "information_filter",
+    "information_filter_diffuse",
+    "sequential_filter",
+    "ud_factor",
+]
 
 
 def _sqrt_psd(A):
@@ -260,3 +267,86 @@ def information_filter(F, H, Q, R, y, x0, P0, B=None, D=None, N=None, u=None):
 def sequential_filter(F, H, Q, R, y, x0, P0, B=None, D=None, N=None, u=None):
     """Scalar processing of independent (or whitened) components; ``kalman_filter``'s dict."""
     return _filter(_Sequential, F, H, Q, R, y, x0, P0, B, D, N, u)
+
+
+def _pinv_quad(Y, v):
+    """v' Y^+ v for a symmetric PSD Y and v in its range."""
+    return float(v @ np.linalg.lstsq(Y, v, rcond=1e-12)[0])
+
+
+def information_filter_diffuse(F, H, Q, R, y, x0, P0, P0_inf, B=None, D=None, u=None, tol=1e-9):
+    """The information filter started at Y0 = lim (P0 + k P0_inf)^-1, k -> oo: Y0 = Z (Z' P0 Z)^-1 Z'
+    with Z a basis of the null space of P0_inf (Y0 = 0 when P0_inf is nonsingular: P0^-1 = 0), and
+    yv0 = Y0 x0. Both recursions are continuous in Y, so they run unchanged from the singular Y0:
+    the measurement adds H' R^-1 H and H' R^-1 (y - D u), the time update is
+
+        M = A' Y A,  C = G' M G + I,  Y+ = M - M G C^-1 G' M,  yv+ = (I - M G C^-1 G') A' yv + Y+ B u
+
+    with A = F^-1 and G G' = Q (Anderson & Moore (1979) Sec. 6.3). No N.
+
+    Returns x_filt, P_filt, x_pred, P_pred (NaN at the steps where Y is singular: the state is not
+    yet identified), ``identified`` (Y(t|t) positive definite) and the diffuse log-likelihood of
+    Durbin & Koopman (2012) Sec. 7.2.2, lim (log L + (q/2) log k), from information quantities:
+    the terms of e' S^-1 e by y' R^-1 y + yv_pred' Y_pred^+ yv_pred - yv_filt' Y_filt^+ yv_filt (each
+    a limit: yv stays in the range of Y), and the log det S terms telescoped,
+
+        sum log det S = sum log det R + log det Y(T-1|T-1) - log det Y0(k) + sum (2 log|det F| + log det C),
+
+    where -log det Y0(k) = q log k + log pdet(P0_inf) + log det(Z' P0 Z) + o(1). Needs Y(T-1|T-1)
+    nonsingular (every diffuse direction identified by the end), F invertible and R positive definite.
+    """
+    y = np.asarray(y, dtype=float)
+    T, m = y.shape
+    n = len(x0)
+    P0, P_inf = np.asarray(P0, float), np.asarray(P0_inf, float)
+    w, V = np.linalg.eigh(P_inf)
+    diffuse = w > tol * max(1.0, w.max(initial=0.0))
+    Z = V[:, ~diffuse]
+    Y = Z @ np.linalg.inv(Z.T @ P0 @ Z) @ Z.T if Z.shape[1] else np.zeros((n, n))
+    yv = Y @ np.asarray(x0, float)
+    log_det_terms = np.sum(np.log(w[diffuse])) + np.linalg.slogdet(Z.T @ P0 @ Z)[1]
+    quad_and_const = 0.0
+    nan = np.full((T, n), np.nan)
+    out = {"x_pred": nan.copy(), "x_filt": nan.copy(), "P_pred": np.full((T, n, n), np.nan),
+           "P_filt": np.full((T, n, n), np.nan), "identified": np.zeros(T, bool)}
+
+    def definite(Y):
+        ev = np.linalg.eigvalsh(Y)
+        return ev[0] > tol * max(1.0, ev[-1])
+
+    for t in range(T):
+        Ft, Ht, Qt, Rt = _at(F, t), _at(H, t), _at(Q, t), _at(R, t)
+        Bu = _at(B, t) @ u[t] if B is not None else np.zeros(n)
+        Du = _at(D, t) @ u[t] if D is not None else np.zeros(m)
+        if definite(Y):
+            out["P_pred"][t] = np.linalg.inv(Y)
+            out["x_pred"][t] = out["P_pred"][t] @ yv
+        o = ~np.isnan(y[t])
+        if o.any():
+            Ho, Ro, yo = Ht[o], Rt[np.ix_(o, o)], (y[t] - Du)[o]
+            Ri = np.linalg.inv(Ro)
+            before = _pinv_quad(Y, yv)
+            Y = Y + Ho.T @ Ri @ Ho
+            yv = yv + Ho.T @ Ri @ yo
+            quad = yo @ Ri @ yo + before - _pinv_quad(Y, yv)
+            quad_and_const += o.sum() * np.log(2 * np.pi) + np.linalg.slogdet(Ro)[1] + quad
+        if definite(Y):
+            out["identified"][t] = True
+            out["P_filt"][t] = np.linalg.inv(Y)
+            out["x_filt"][t] = out["P_filt"][t] @ yv
+        if t == T - 1:
+            break
+        A = np.linalg.inv(Ft)
+        G = _sqrt_psd(Qt)
+        M = A.T @ Y @ A
+        C = G.T @ M @ G + np.eye(G.shape[1])
+        MGC = np.linalg.solve(C, G.T @ M).T
+        Y = M - MGC @ G.T @ M
+        Y = (Y + Y.T) / 2
+        yv = A.T @ yv - MGC @ (G.T @ (A.T @ yv)) + Y @ Bu
+        log_det_terms += 2 * np.log(abs(np.linalg.det(Ft))) + np.linalg.slogdet(C)[1]
+    if not definite(Y):
+        raise ValueError("a diffuse direction is still unidentified at the last step")
+    log_det_terms += np.linalg.slogdet(Y)[1]
+    out["loglik"] = -0.5 * (quad_and_const + log_det_terms)
+    return out

@@ -15,6 +15,11 @@
 //! (a Cholesky solve) is kept for the outputs and the innovations; the log-likelihood term
 //! uses det S = det R · det Y(t|t) / det Y(t|t−1) and
 //! e' S⁻¹ e = e' R⁻¹ e − b' Y(t|t)⁻¹ b with b = H' R⁻¹ e.
+//!
+//! The diffuse case P0⁻¹ = 0 comes through `P0_inf`: the exact diffuse steps (`diffuse.rs`)
+//! give the outputs while Y is singular, and this recursion continues from P(d|d−1); the
+//! result is the information filter run from Y0 = lim (P_* + κ P_∞)⁻¹ (docs/algorithms.md,
+//! "Update forms").
 
 use super::{not_psd, psd_cholesky, Measurement, Recursion, HALF_LOG_2PI};
 use crate::core::dense::{lu_in_place, lu_solve};
