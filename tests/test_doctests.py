@@ -29,6 +29,9 @@ MODULES = [
     "kfast.riccati.solvers",
     "kfast.riccati.stationary",
     "kfast.models",
+    "kfast.control.lq",
+    "kfast.control.lqg",
+    "kfast.control.dp",
 ]
 
 FLAGS = doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS
@@ -69,6 +72,10 @@ DOCUMENTED = {
     "expm": (kfast.expm, ("Parameters", "Returns", "Raises", "Notes")),
     "kalman_bucy": (kfast.kalman_bucy, ("Parameters", "Returns", "Raises", "Notes")),
     "stationary_cov_continuous": (kfast.stationary_cov_continuous, ("Parameters", "Returns", "Raises")),
+    "control.lqr": (kfast.control.lqr, ("Parameters", "Returns", "Raises")),
+    "control.lq_finite": (kfast.control.lq_finite, ("Parameters", "Returns")),
+    "control.lqg": (kfast.control.lqg, ("Parameters", "Returns")),
+    "control.dynamic_programming": (kfast.control.dynamic_programming, ("Parameters", "Returns")),
 }
 # Methods of the streaming objects: parameters and errors.
 for cls in (kfast.KalmanFilter, kfast.FixedLagSmoother):

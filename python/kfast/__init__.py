@@ -64,10 +64,12 @@ from kfast.riccati.solvers import (
 
 from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
 from kfast import sigma  # noqa: E402  (sigma-point sets: kfast.sigma.merwe, julier, cubature)
+from kfast import control  # noqa: E402  (LQ, LQG and dynamic programming: kfast.control.lqr, ...)
 
 __all__ = [
     "models",
     "sigma",
+    "control",
     "LinearGaussian",
     "NonlinearModel",
     "ExtendedKalmanFilter",

@@ -1,0 +1,30 @@
+"""Optimal control (Söderström ch. 10-11). Sign convention everywhere: u = -L x.
+
+- :func:`lqr` — the stationary LQ regulator (the DARE through duality, (11.47)-(11.48));
+- :func:`lq_finite` — the finite-horizon regulator, time-varying data allowed ((11.6)-(11.7));
+- :func:`lqg` — stationary LQG by separation (Thm 11.3): regulator realisation, closed loop,
+  variances and cost, k = 0 or 1;
+- :func:`return_difference` ((11.49)), :func:`reference_gain` ((11.89)),
+  :func:`lqr_integral` ((11.90)-(11.91)), :func:`ltr_gain` ((11.105)-(11.108));
+- :func:`dynamic_programming` — stochastic dynamic programming on finite grids (Lemma 10.4).
+"""
+
+from kfast.control.dp import DPResult, dynamic_programming
+from kfast.control.lq import LQFiniteResult, LQResult, lq_finite, lqr
+from kfast.control.lqg import IntegralLQResult, LQGResult, lqg, lqr_integral, ltr_gain, reference_gain, return_difference
+
+__all__ = [
+    "lqr",
+    "lq_finite",
+    "lqg",
+    "return_difference",
+    "reference_gain",
+    "lqr_integral",
+    "ltr_gain",
+    "dynamic_programming",
+    "LQResult",
+    "LQFiniteResult",
+    "LQGResult",
+    "IntegralLQResult",
+    "DPResult",
+]
