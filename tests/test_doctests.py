@@ -32,6 +32,10 @@ MODULES = [
     "kfast.control.lq",
     "kfast.control.lqg",
     "kfast.control.dp",
+    "kfast.control.polynomial",
+    "kfast.poly.spectral",
+    "kfast.poly.equations",
+    "kfast.poly.arma",
 ]
 
 FLAGS = doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS

@@ -65,11 +65,13 @@ from kfast.riccati.solvers import (
 from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
 from kfast import sigma  # noqa: E402  (sigma-point sets: kfast.sigma.merwe, julier, cubature)
 from kfast import control  # noqa: E402  (LQ, LQG and dynamic programming: kfast.control.lqr, ...)
+from kfast import poly  # noqa: E402  (polynomial methods: kfast.poly.spectral_factor, diophantine, ...)
 
 __all__ = [
     "models",
     "sigma",
     "control",
+    "poly",
     "LinearGaussian",
     "NonlinearModel",
     "ExtendedKalmanFilter",

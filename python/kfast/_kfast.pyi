@@ -54,6 +54,25 @@ def care(
     e: Optional[NDArray[np.float64]] = None,
     s: Optional[NDArray[np.float64]] = None,
 ) -> dict[str, Any]: ...
+def lqr(
+    F: NDArray[np.float64],
+    G: NDArray[np.float64],
+    Q1: NDArray[np.float64],
+    Q2: NDArray[np.float64],
+    Q12: Optional[NDArray[np.float64]] = None,
+    method: str = "doubling",
+    eigenvalues: bool = False,
+) -> dict[str, Any]: ...
+def lq_finite(
+    F: NDArray[np.float64],
+    G: NDArray[np.float64],
+    Q0: NDArray[np.float64],
+    Q1: NDArray[np.float64],
+    Q2: NDArray[np.float64],
+    N: int,
+    Q12: Optional[NDArray[np.float64]] = None,
+) -> dict[str, NDArray[np.float64]]: ...
+def eigenvalues(a: NDArray[np.float64]) -> NDArray[np.complex128]: ...
 
 def expm(a: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def innovation_diagnostics(

@@ -56,6 +56,8 @@
 //! - [`multiple::MultipleModelFilter`]: the interacting multiple-model filter, the fixed
 //!   model bank and the Gaussian-sum filter over linear or nonlinear modes
 //!   ([`multiple::ModeFilter`]), modes of different sizes related by [`multiple::StateMap`]s.
+//! - [`control::lqr`] / [`control::lq_finite`]: LQ regulators u = −L x, stationary and over a
+//!   finite horizon (Söderström ch. 11), on the same Riccati code by duality.
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -69,6 +71,7 @@
 
 #![warn(missing_docs)]
 
+pub mod control;
 mod core;
 pub mod error;
 pub mod linear;

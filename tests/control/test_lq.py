@@ -150,9 +150,9 @@ def test_bad_input():
         kfast.control.lqr(F, G, [[1.0, 0.5], [0.0, 1.0]], 1.0)
     with pytest.raises(ValueError, match="Q12: the joint weight"):
         kfast.control.lqr(F, G, np.eye(2), 1.0, Q12=[[3.0], [0.0]])
-    with pytest.raises(ValueError, match=r"G: expected shape \(2, \.\)"):
+    with pytest.raises(ValueError, match=r"G: expected 2 rows like F"):
         kfast.control.lqr(F, np.ones((3, 1)), np.eye(2), 1.0)
-    with pytest.raises(ValueError, match="F: must be finite"):
+    with pytest.raises(ValueError, match="F: contains a non-finite value"):
         kfast.control.lqr([[np.nan, 1.0], [0.0, 1.0]], G, np.eye(2), 1.0)
     with pytest.raises(ValueError, match="N: the horizon must be at least 1"):
         kfast.control.lq_finite(F, G, np.eye(2), np.eye(2), 1.0, 0)
@@ -166,6 +166,14 @@ def test_bad_input():
         kfast.control.lq_finite(F, G, np.zeros((2, 2)), np.zeros((2, 2)), 0.0, 3)
     with pytest.raises(ValueError, match="Q0: .*positive semidefinite"):
         kfast.control.lq_finite(F, G, -np.eye(2), np.eye(2), 1.0, 3)
+    with pytest.raises(ValueError, match="Q1 at step 1: not symmetric"):
+        kfast.control.lq_finite(F, G, np.eye(2), np.array([np.eye(2), [[1.0, 0.5], [0.0, 1.0]], np.eye(2)]), 1.0, 3)
+    with pytest.raises(ValueError, match="Q12 at step 2: .*the joint weight"):
+        kfast.control.lq_finite(F, G, np.eye(2), np.eye(2), 1.0, 3, Q12=np.array([[[0.0], [0.0]], [[0.0], [0.0]], [[3.0], [0.0]]]))
+    with pytest.raises(ValueError, match="N: .*too large|N: .*memory"):
+        kfast.control.lq_finite(F, G, np.eye(2), np.eye(2), 1.0, 2**62)
+    with pytest.raises(ValueError, match="method: expected one of"):
+        kfast.control.lqr(F, G, np.eye(2), 1.0, method="qz")
     # Nothing passed in is modified.
     Q1 = np.eye(2)
     kfast.control.lq_finite(F, G, Q1, Q1, 1.0, 3, x0=[1.0, 2.0], Q=Q1)

@@ -6,11 +6,14 @@
   variances and cost, k = 0 or 1;
 - :func:`return_difference` ((11.49)), :func:`reference_gain` ((11.89)),
   :func:`lqr_integral` ((11.90)-(11.91)), :func:`ltr_gain` ((11.105)-(11.108));
+- :func:`minimum_variance` ((11.51)-(11.69), Ex. 11.5) and :func:`lqg_polynomial`
+  ((11.74)-(11.88)): polynomial regulators R u = -S y for ARMAX models;
 - :func:`dynamic_programming` — stochastic dynamic programming on finite grids (Lemma 10.4).
 """
 
 from kfast.control.dp import DPResult, dynamic_programming
 from kfast.control.lq import LQFiniteResult, LQResult, lq_finite, lqr
+from kfast.control.polynomial import PolynomialRegulator, closed_loop_variance, lqg_polynomial, minimum_variance
 from kfast.control.lqg import IntegralLQResult, LQGResult, lqg, lqr_integral, ltr_gain, reference_gain, return_difference
 
 __all__ = [
@@ -22,6 +25,10 @@ __all__ = [
     "lqr_integral",
     "ltr_gain",
     "dynamic_programming",
+    "minimum_variance",
+    "lqg_polynomial",
+    "closed_loop_variance",
+    "PolynomialRegulator",
     "LQResult",
     "LQFiniteResult",
     "LQGResult",

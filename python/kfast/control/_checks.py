@@ -45,22 +45,3 @@ def symmetric_psd(name: str, value: np.ndarray, what: str = "", definite: bool =
         if smallest < -tol or (definite and smallest <= tol):
             kind = "positive definite" if definite else "positive semidefinite"
             raise KfastError(f"{name}{where}: {what or name} must be {kind} (smallest eigenvalue {smallest:.6e})")
-
-
-def weights(Q1: np.ndarray, Q2: np.ndarray, Q12: Optional[np.ndarray]) -> None:
-    """The joint weight [[Q1, Q12], [Q12', Q2]] is symmetric positive semidefinite (per step)."""
-    symmetric_psd("Q1", Q1)
-    symmetric_psd("Q2", Q2)
-    if Q12 is None:
-        return
-    steps = max(a.shape[0] if a.ndim == 3 else 1 for a in (Q1, Q2, Q12))
-    for t in range(steps):
-        q1, q2, q12 = (a[t] if a.ndim == 3 else a for a in (Q1, Q2, Q12))
-        joint = np.block([[q1, q12], [q12.T, q2]])
-        where = f" at step {t}" if steps > 1 else ""
-        smallest = float(np.linalg.eigvalsh(joint)[0])
-        if smallest < -1e-12 * max(1.0, float(np.abs(joint).max())) * len(joint):
-            raise KfastError(
-                f"Q12{where}: the joint weight [[Q1, Q12], [Q12', Q2]] is not positive semidefinite "
-                f"(smallest eigenvalue {smallest:.6e})"
-            )

@@ -10,17 +10,19 @@ is the compiled Kalman filter run backwards over the horizon.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from kfast._args import index
-from kfast._kfast import InnovationCovarianceError, KfastError, NoStabilizingSolutionError
+from kfast import _kfast
+from kfast._args import choice, index
+from kfast._arrays import as_float64
+from kfast._kfast import KfastError
 from kfast._typing import DareMethod
-from kfast.control._checks import matrix, symmetric_psd, weights
+from kfast.control._checks import matrix, symmetric_psd
 
 __all__ = ["LQResult", "LQFiniteResult", "lqr", "lq_finite"]
 
@@ -33,10 +35,15 @@ class LQResult:
     """Feedback gain (k, n): L = (G' S G + Q2)^-1 (G' S F + Q12'); u = -L x."""
     S: np.ndarray
     """The stabilizing solution (n, n) of S = F' S F + Q1 - (F' S G + Q12)(G' S G + Q2)^-1 (G' S F + Q12')."""
-    closed_loop_eigenvalues: np.ndarray
-    """Eigenvalues of F - G L (inside the unit circle)."""
+    closed_loop: np.ndarray
+    """F - G L (n, n)."""
     residual: float
     """Relative residual of the Riccati equation."""
+
+    @cached_property
+    def closed_loop_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of F - G L (inside the unit circle), computed on first access."""
+        return _kfast.eigenvalues(self.closed_loop)
 
     def __repr__(self) -> str:
         rho = float(np.abs(self.closed_loop_eigenvalues).max())
@@ -107,30 +114,28 @@ def lqr(
     >>> print(np.sort(res.closed_loop_eigenvalues.real).round(2))
     [0.27 0.58]
     """
-    from kfast.riccati.solvers import dare
-
-    F_ = matrix("F", F)
-    n = F_.shape[0]
-    if F_.shape != (n, n):
-        raise KfastError(f"F: expected a square matrix, got shape {F_.shape}")
-    G_ = matrix("G", G, rows=n)
-    k = G_.shape[1]
-    Q1_, Q2_ = matrix("Q1", Q1, n, n), matrix("Q2", Q2, k, k)
-    Q12_ = None if Q12 is None else matrix("Q12", Q12, n, k)
-    weights(Q1_, Q2_, Q12_)
-    try:
-        sol = dare(F_, G_, Q1_, Q2_, s=Q12_, method=method)
-    except NoStabilizingSolutionError as exc:
-        raise NoStabilizingSolutionError(
-            f"lqr: no stabilizing feedback: (F, G) is not stabilizable, or the weighted state has a "
-            f"mode on the unit circle that Q1 does not see ({exc})"
-        ) from None
-    return LQResult(
-        L=sol["gain"],
-        S=sol["x"],
-        closed_loop_eigenvalues=sol["closed_loop_eigenvalues"],
-        residual=float(sol["residual"]),
+    out = _kfast.lqr(
+        _as_matrix("F", F),
+        _as_matrix("G", G),
+        _as_matrix("Q1", Q1),
+        _as_matrix("Q2", Q2),
+        None if Q12 is None else _as_matrix("Q12", Q12),
+        choice("method", method, _METHODS),
     )
+    return LQResult(L=out["L"], S=out["S"], closed_loop=out["closed_loop"], residual=float(out["residual"]))
+
+
+_METHODS = ("doubling", "newton", "iteration", "eigen")
+
+
+def _as_matrix(name: str, value: ArrayLike, stack: bool = False) -> np.ndarray:
+    """float64, a scalar as 1 x 1 and a vector as a column (the core checks shapes and values)."""
+    a = as_float64(name, value)
+    if a.ndim < 2:
+        return a.reshape(-1, 1)
+    if a.ndim == 3 and not stack:
+        raise KfastError(f"{name}: expected a 2-D array, got shape {a.shape}")
+    return a
 
 
 def _per_step(name: str, a: np.ndarray, N: int) -> np.ndarray:
@@ -163,7 +168,7 @@ def lq_finite(
         S(N) = Q0,  L(t) = (G' S(t+1) G + Q2)^-1 (G' S(t+1) F + Q12'),
         S(t) = F' S(t+1) F + Q1 - (F' S(t+1) G + Q12) L(t)
 
-    Computed by the compiled Kalman filter (Joseph form) on the dual problem in reversed time
+    Computed in Rust by the Kalman filter (Joseph form) on the dual problem in reversed time
     (Söderström (11.19)-(11.31)).
 
     Parameters
@@ -195,54 +200,25 @@ def lq_finite(
     >>> bool(np.allclose(fin.L[0], kfast.control.lqr(F, G, np.eye(2), 0.1).L))
     True
     """
-    from kfast.linear.model import LinearGaussian
-
     steps = index("N", N)
     if steps < 1:
         raise KfastError(f"N: the horizon must be at least 1, got {steps}")
-    F_ = matrix("F", F, stack=True)
-    n = F_.shape[-1]
-    if F_.shape[-2] != n:
-        raise KfastError(f"F: expected square matrices, got shape {F_.shape}")
-    G_ = matrix("G", G, rows=n, stack=True)
-    k = G_.shape[-1]
-    Q0_ = matrix("Q0", Q0, n, n)
-    Q1_, Q2_ = matrix("Q1", Q1, n, n, stack=True), matrix("Q2", Q2, k, k, stack=True)
-    Q12_ = None if Q12 is None else matrix("Q12", Q12, n, k, stack=True)
-    symmetric_psd("Q0", Q0_)
-    weights(Q1_, Q2_, Q12_)
-    Fs, Gs, Q1s, Q2s = (_per_step(name, a, steps) for name, a in (("F", F_), ("G", G_), ("Q1", Q1_), ("Q2", Q2_)))
-    Q12s = None if Q12_ is None else _per_step("Q12", Q12_, steps)
-
-    # The dual filter problem, step tau = N - 1 - t: F' , H = G', Q = Q1, R = Q2, N = Q12.
-    def reverse(a: np.ndarray) -> np.ndarray:
-        return np.ascontiguousarray(a[::-1])
-
-    dual = LinearGaussian(
-        F=reverse(Fs.swapaxes(-1, -2)),
-        H=reverse(Gs.swapaxes(-1, -2)),
-        Q=reverse(Q1s),
-        R=reverse(Q2s),
-        N=None if Q12s is None else reverse(Q12s),
+    out = _kfast.lq_finite(
+        _as_matrix("F", F, stack=True),
+        _as_matrix("G", G, stack=True),
+        _as_matrix("Q0", Q0),
+        _as_matrix("Q1", Q1, stack=True),
+        _as_matrix("Q2", Q2, stack=True),
+        steps,
+        None if Q12 is None else _as_matrix("Q12", Q12, stack=True),
     )
-    try:
-        out = dual.filter(np.zeros((steps, k)), np.zeros(n), Q0_, outputs=("P_pred", "K_pred", "P_next"))
-    except InnovationCovarianceError as exc:
-        tau = re.search(r"at step (\d+)", str(exc))
-        step = steps - 1 - int(tau.group(1)) if tau else "?"
-        raise KfastError(f"Q2 at step {step}: G' S(t+1) G + Q2 is not positive definite ({exc})") from None
-    assert out.P_pred is not None and out.K_pred is not None and out.P_next is not None
-    S = np.empty((steps + 1, n, n))
-    S[steps:0:-1] = out.P_pred
-    S[0] = out.P_next
-    L = np.ascontiguousarray(out.K_pred[::-1].swapaxes(-1, -2))
-
+    S, L = out["S"], out["L"]
+    n = S.shape[-1]
     sigma = np.zeros(steps + 1)
     if Q is not None:
         Q_ = matrix("Q", Q, n, n, stack=True)
         symmetric_psd("Q", Q_)
-        Qs = _per_step("Q", Q_, steps)
-        terms = np.einsum("tij,tji->t", S[1:], Qs)
+        terms = np.einsum("tij,tji->t", S[1:], _per_step("Q", Q_, steps))
         sigma[:-1] = np.cumsum(terms[::-1])[::-1]
     cost = None
     if x0 is not None:

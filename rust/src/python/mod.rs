@@ -2,6 +2,7 @@
 //! nothing else (no numerics here). The Python package `kfast` wraps it; arrays arrive here
 //! already converted to C-contiguous float64 by `kfast._arrays.as_float64`.
 
+mod control;
 mod diagnostics;
 mod model;
 mod multiple;
@@ -396,6 +397,9 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(deterministic, m)?)?;
     m.add_function(wrap_pyfunction!(_force_kernel, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::dare, m)?)?;
+    m.add_function(wrap_pyfunction!(control::lqr, m)?)?;
+    m.add_function(wrap_pyfunction!(control::lq_finite, m)?)?;
+    m.add_function(wrap_pyfunction!(control::eigenvalues, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::discretize, m)?)?;

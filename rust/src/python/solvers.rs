@@ -9,7 +9,7 @@ type Array<'py> = PyReadonlyArrayDyn<'py, f64>;
 type OutArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 
 /// The data and size of a square 2-D array.
-fn square<'a>(arg: &str, a: &'a Array<'_>) -> PyResult<(&'a [f64], usize)> {
+pub(super) fn square<'a>(arg: &str, a: &'a Array<'_>) -> PyResult<(&'a [f64], usize)> {
     let values = data(arg, a, 2)?;
     let shape = a.shape();
     if shape[0] != shape[1] {
@@ -52,12 +52,12 @@ pub(super) fn stationary_covariance<'py>(py: Python<'py>, F: Array<'py>, Q: Arra
 }
 
 /// A general (not necessarily square) 2-D array's data and shape.
-fn matrix<'a>(arg: &str, a: &'a Array<'_>) -> PyResult<(&'a [f64], usize, usize)> {
+pub(super) fn matrix<'a>(arg: &str, a: &'a Array<'_>) -> PyResult<(&'a [f64], usize, usize)> {
     let values = data(arg, a, 2)?;
     Ok((values, a.shape()[0], a.shape()[1]))
 }
 
-fn parse_method(method: &str) -> PyResult<crate::DareMethod> {
+pub(super) fn parse_method(method: &str) -> PyResult<crate::DareMethod> {
     use crate::DareMethod::*;
     match method {
         "doubling" => Ok(Doubling),

@@ -855,6 +855,12 @@ fn stable_subspace(z: &Mat<f64>, n: usize, stable: impl Fn(c64) -> bool, region:
     Ok(x)
 }
 
+/// Eigenvalues (re, im) of a row-major n × n matrix (faer's Hessenberg QR), for the bindings.
+#[cfg(feature = "python")]
+pub(crate) fn eigenvalues_of(a: &[f64], n: usize) -> Result<Vec<(f64, f64)>> {
+    eigenvalues(&to_mat(a, n))
+}
+
 fn eigenvalues(a: &Mat<f64>) -> Result<Vec<(f64, f64)>> {
     let ev = a.eigenvalues().map_err(|_| no_solution("closed-loop eigenvalues did not converge"))?;
     Ok(ev.iter().map(|l| (l.re, l.im)).collect())

@@ -1,0 +1,106 @@
+"""Polynomial equations: the Diophantine equation A X + B Y = C (Söderström (11.84)-(11.85), the
+Sylvester system) and the predictor identity z^(k-1) C = A F + L ((7.13)-(7.22))."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kfast._args import index
+from kfast._kfast import KfastError
+from kfast.poly._poly import monic, poly, trim
+
+__all__ = ["Diophantine", "diophantine", "predictor_identity"]
+
+
+@dataclass(frozen=True, repr=False)
+class Diophantine:
+    """The solution of A X + B Y = C with the minimal degree of X (deg X < deg B)."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    condition: float
+    """Condition number of the Sylvester system (large: A and B nearly share a factor)."""
+
+    def __repr__(self) -> str:
+        return f"Diophantine(deg X={len(self.X) - 1}, deg Y={len(self.Y) - 1}, condition={self.condition:.3g})"
+
+
+def _convolution_matrix(p: np.ndarray, cols: int, rows: int) -> np.ndarray:
+    """The (rows, cols) matrix M with M @ x = coefficients of p(z) x(z) (x of degree cols - 1),
+    aligned at z^0 (descending powers: the last row is z^0)."""
+    M = np.zeros((rows, cols))
+    for j in range(cols):
+        # x_j multiplies z^(cols-1-j); p's z^i term lands at power i + cols - 1 - j.
+        for i, c in enumerate(p[::-1]):
+            power = i + cols - 1 - j
+            M[rows - 1 - power, j] = c
+    return M
+
+
+def diophantine(A: ArrayLike, B: ArrayLike, C: ArrayLike) -> Diophantine:
+    """Solve A(z) X(z) + B(z) Y(z) = C(z) for the solution with deg X < deg B (unique when A and
+    B are coprime), by the Sylvester system of the coefficients (Söderström (11.84)-(11.85),
+    (7.64)-(7.70)).
+
+    Parameters
+    ----------
+    A, B, C : array_like
+        Coefficients in descending powers of z.
+
+    Returns
+    -------
+    Diophantine
+        X (degree deg B - 1), Y (degree max(deg C, deg A + deg B - 1) - deg B) and the
+        condition number of the system.
+
+    Raises
+    ------
+    KfastError
+        When A and B have a common factor (the Sylvester matrix is singular): then the equation
+        has no solution unless the factor divides C, and never a unique one.
+
+    Examples
+    --------
+    >>> d = kfast.poly.diophantine([1, -1.5, 0.7], [1, 0.5], [1, 0, 0, 0])
+    >>> bool(np.allclose(np.polyadd(np.polymul([1, -1.5, 0.7], d.X), np.polymul([1, 0.5], d.Y)), [1, 0, 0, 0]))
+    True
+    """
+    A_, B_, C_ = poly("A", A), poly("B", B), poly("C", C, allow_zero=True)
+    na, nb, nc = len(A_) - 1, len(B_) - 1, len(C_) - 1
+    top = max(nc, na + nb - 1, 0)
+    nx, ny = nb, top - nb + 1  # numbers of coefficients of X and Y
+    rows = top + 1
+    M = np.hstack([_convolution_matrix(A_, nx, rows), _convolution_matrix(B_, ny, rows)])
+    rhs = np.zeros(rows)
+    rhs[rows - len(C_):] = C_
+    cond = float(np.linalg.cond(M)) if M.size else 1.0
+    if not cond < 1e12:
+        raise KfastError(
+            f"A, B: have a common factor (the Sylvester matrix of the Diophantine equation is singular, "
+            f"condition number {cond:.3g}): the solution is not unique"
+        )
+    sol = np.linalg.solve(M, rhs)
+    return Diophantine(X=sol[:nx] if nx else np.zeros(1), Y=sol[nx:], condition=cond)
+
+
+def predictor_identity(A: ArrayLike, C: ArrayLike, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The predictor identity z^(k-1) C(z) = A(z) F(z) + L(z) (Söderström (7.13)-(7.22)): F monic of
+    degree k - 1 (the first k impulse-response coefficients of C/A) and L of degree < deg A,
+    by long division. A and C monic, deg C <= deg A; k >= 1.
+
+    Returns (F, L), L padded to deg A coefficients (ℓ_0 z^(n-1) + ... + ℓ_(n-1))."""
+    A_, C_ = monic("A", A), monic("C", C)
+    steps = index("k", k)
+    if steps < 1:
+        raise KfastError(f"k: the prediction horizon must be at least 1, got {steps}")
+    n = len(A_) - 1
+    if len(C_) - 1 > n:
+        raise KfastError(f"C: degree {len(C_) - 1} exceeds deg A = {n}")
+    shifted = np.concatenate([np.pad(C_, (n + 1 - len(C_), 0)), np.zeros(steps - 1)])  # z^(k-1) C, degree n + k - 1
+    F, L = np.polydiv(shifted, A_)
+    L = trim(np.atleast_1d(L))
+    L = np.pad(L, (max(n - len(L), 0), 0))[-n:] if n else np.zeros(0)
+    return F, L
