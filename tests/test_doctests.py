@@ -36,6 +36,7 @@ MODULES = [
     "kfast.poly.spectral",
     "kfast.poly.equations",
     "kfast.poly.arma",
+    "kfast.poly.wiener",
 ]
 
 FLAGS = doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS

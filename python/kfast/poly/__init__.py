@@ -8,6 +8,8 @@ an ARMA(X) model is A(q) y = B(q) u + C(q) e, var e = λ².
   z^(k-1) C = A F + L (7.13).
 - :func:`arma_predictor` — the k-step predictor q L / C (7.18), with C's zeros reflected into
   the unit circle first (:func:`invertible`, Example 7.1).
+- :func:`wiener_causal`, :func:`wiener_noncausal`, :func:`wiener_fir` — Wiener filters of a
+  signal C/A v in coloured noise M/N e, lag m (7.47), (7.76)-(7.93).
 - :func:`arma_to_ss`, :func:`ss_to_arma` — ARMA(X) <-> innovations state space, so each
   result can be checked against the Kalman filter.
 - arithmetic: :func:`polymul`, :func:`polyadd`, :func:`polysub`, :func:`reciprocal`,
@@ -18,6 +20,7 @@ from kfast.poly._poly import laurent, polyadd, polymul, polysub, reciprocal
 from kfast.poly.arma import ArmaPredictor, arma_predictor, arma_to_ss, invertible, ss_to_arma
 from kfast.poly.equations import Diophantine, diophantine, predictor_identity
 from kfast.poly.spectral import SpectralFactor, evaluate_spectrum, spectral_factor
+from kfast.poly.wiener import WienerFilter, wiener_causal, wiener_fir, wiener_noncausal
 
 __all__ = [
     "spectral_factor",
@@ -36,4 +39,8 @@ __all__ = [
     "SpectralFactor",
     "Diophantine",
     "ArmaPredictor",
+    "wiener_causal",
+    "wiener_noncausal",
+    "wiener_fir",
+    "WienerFilter",
 ]

@@ -71,8 +71,15 @@ def evaluate_spectrum(r: ArrayLike, omega: ArrayLike) -> np.ndarray:
 
 
 def _check_nonnegative(name: str, r: np.ndarray) -> None:
-    grid = np.linspace(0.0, np.pi, 4097)
-    phi = evaluate_spectrum(r, grid)
+    """φ >= 0 on a grid of at least 4096 frequencies in [0, π], by one real FFT."""
+    d = (r.size - 1) // 2
+    size = 8192 * (1 + 4 * d // 8192)
+    seq = np.zeros(size)
+    seq[: d + 1] = r[d:]
+    if d:
+        seq[-d:] = r[:d]
+    phi = np.fft.rfft(seq).real  # r_0 + 2 Σ r_k cos(2π j k / size), j = 0 .. size/2
+    grid = np.linspace(0.0, np.pi, len(phi))
     low = int(np.argmin(phi))
     if phi[low] < -1e-10 * np.abs(r).max():
         raise KfastError(

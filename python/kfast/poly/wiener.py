@@ -1,0 +1,225 @@
+"""Wiener filters for a signal in coloured noise (Söderström Sec. 7.3-7.4):
+
+    y(t) = s(t) + w(t),   s = [C(q)/A(q)] v,   w = [M(q)/N(q)] e,   v ⊥ e white, var λv², λe²
+
+(C, A monic of degree n; M, N monic of degree r; all zeros inside the unit circle), estimating
+s(t - m) from y(t), y(t-1), ... — m = 0 filtering, m > 0 smoothing with lag m, m < 0 prediction
+(Söderström's convention). Transfer functions are returned as numerator and denominator in
+descending powers of q: ŝ(t - m) = [num(q)/den(q)] y(t).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kfast._args import index
+from kfast._kfast import KfastError
+from kfast._numbers import positive_real
+from kfast.poly._poly import laurent, monic, polymul, reciprocal, trim
+from kfast.poly.spectral import spectral_factor
+
+__all__ = ["WienerFilter", "wiener_causal", "wiener_noncausal", "wiener_fir"]
+
+
+@dataclass(frozen=True, repr=False)
+class WienerFilter:
+    """ŝ(t - m) = [num(q) / den(q)] y(t); for the non-causal filter num and den are Laurent
+    polynomials (highest power ``num_top`` / ``den_top``), for the FIR filter den = [1]."""
+
+    num: np.ndarray
+    den: np.ndarray
+    error_variance: float
+    """E (s(t - m) - ŝ(t - m))²."""
+    lag: int
+    num_top: int
+    """The power of z of num[0] (deg num for a causal filter)."""
+    den_top: int
+
+    def frequency_response(self, omega: ArrayLike) -> np.ndarray:
+        """G(e^{iω}) at the frequencies ``omega`` (rad/sample)."""
+        z = np.exp(1j * np.asarray(omega, float))
+
+        def value(c: np.ndarray, top: int) -> np.ndarray:
+            return np.polyval(c, z) * z ** (top - (len(c) - 1))
+
+        return value(self.num, self.num_top) / value(self.den, self.den_top)
+
+    def __repr__(self) -> str:
+        return f"WienerFilter(lag={self.lag}, error_variance={self.error_variance:.6g})"
+
+
+def _signal_and_noise(C, A, lam_v2, M, N, lam_e2):
+    C_, A_ = monic("C", C), monic("A", A)
+    M_ = monic("M", [1.0] if M is None else M)
+    N_ = monic("N", [1.0] if N is None else N)
+    if len(C_) != len(A_):
+        raise KfastError(f"C: must have the degree of A ({len(A_) - 1}), got {len(C_) - 1}")
+    if len(M_) != len(N_):
+        raise KfastError(f"M: must have the degree of N ({len(N_) - 1}), got {len(M_) - 1}")
+    for name, p in (("C", C_), ("A", A_), ("M", M_), ("N", N_)):
+        if len(p) > 1 and np.abs(np.roots(p)).max() >= 1.0:
+            raise KfastError(f"{name}: must have its zeros strictly inside the unit circle")
+    return C_, A_, positive_real("lam_v2", lam_v2), M_, N_, positive_real("lam_e2", lam_e2)
+
+
+def _lag(m: object) -> int:
+    """Söderström's lag m: an integer of any sign."""
+    if isinstance(m, (bool, np.bool_)) or not isinstance(m, (int, np.integer)):
+        raise KfastError(f"m: expected an integer lag (m > 0 smooths, m < 0 predicts), got {m!r}")
+    if abs(int(m)) > 10_000:
+        raise KfastError(f"m: the lag {m} is too large (|m| <= 10000)")
+    return int(m)
+
+
+def _innovations(C_, A_, lv, M_, N_, le):
+    """(7.80): λε² B B* = λv² C C* N N* + λe² A A* M M*."""
+    signal = lv * laurent(polymul(C_, N_), polymul(C_, N_))
+    noise = le * laurent(polymul(A_, M_), polymul(A_, M_))
+    f = spectral_factor(signal + noise)
+    return f.B, f.lam2
+
+
+def _variance_of(num: np.ndarray, den: np.ndarray) -> float:
+    """(1/2π) ∫ |num(e^{iω})|² / |den(e^{iω})|² dω for den stable: num is shifted by powers of z
+    (|z| = 1) until proper."""
+    from kfast.control.polynomial import closed_loop_variance
+
+    num = trim(np.asarray(num, float))
+    extra = max(0, len(num) - len(den))
+    return closed_loop_variance(num, np.r_[den, np.zeros(extra)] / den[0])
+
+
+def _two_sided(lhs: np.ndarray, lhs_top: int, Bstar: np.ndarray, alpha: int, deg_R: int, A_: np.ndarray, beta: int, deg_L: int) -> tuple[np.ndarray, np.ndarray]:
+    """Solve lhs(z) = z^alpha B*(z) R(z) + z^beta A(z) L*(z) for R (a polynomial in z of degree
+    deg_R) and L* (a polynomial in z^-1 of degree deg_L) by matching Laurent coefficients
+    (Söderström (7.64)-(7.70)); Bstar = B(z^-1) as coefficients of z^0 .. z^-(deg B).
+    Returns R (descending powers of z) and L* (coefficients of z^0 .. z^-deg_L)."""
+    columns = []
+    for j in range(deg_R + 1):  # z^j R-term: z^(alpha + j) B*(z)
+        columns.append((alpha + j, Bstar))
+    for j in range(deg_L + 1):  # z^-j L*-term: z^(beta - j) A(z)
+        columns.append((beta - j + len(A_) - 1, A_))
+    tops = [top for top, _ in columns] + [lhs_top]
+    bottoms = [top - (len(c) - 1) for top, c in columns] + [lhs_top - (len(lhs) - 1)]
+    hi, lo = max(tops), min(bottoms)
+    rows = hi - lo + 1
+    M = np.zeros((rows, len(columns)))
+    for k, (top, c) in enumerate(columns):
+        M[hi - top: hi - top + len(c), k] = c
+    rhs = np.zeros(rows)
+    rhs[hi - lhs_top: hi - lhs_top + len(lhs)] = lhs
+    sol, *_ = np.linalg.lstsq(M, rhs, rcond=None)
+    scale = max(1.0, float(np.abs(rhs).max()))
+    if np.abs(M @ sol - rhs).max() > 1e-8 * scale:
+        raise KfastError("the two-sided Diophantine equation (7.84) has no solution: are B and A coprime?")
+    R = sol[: deg_R + 1][::-1]  # coefficients of z^deg_R .. z^0
+    L_star = sol[deg_R + 1:]  # coefficients of z^0 .. z^-deg_L
+    return R, L_star
+
+
+def wiener_causal(
+    C: ArrayLike,
+    A: ArrayLike,
+    lam_v2: float,
+    M: Optional[ArrayLike] = None,
+    N: Optional[ArrayLike] = None,
+    lam_e2: float = 1.0,
+    m: int = 0,
+) -> WienerFilter:
+    """The causal (realizable) Wiener filter, the minimum-variance estimate of s(t - m) from y
+    up to t (Söderström (7.76)-(7.89)): the spectral factor (7.80) λε² B B*, the two-sided
+    Diophantine equation z^-m C C* N* = z^min(0,-m) B* R + z^max(0,-m) A L* (7.84) and
+    G = (λv²/λε²) z^min(0,-m) R N / B (7.86). Error variance from (7.89):
+    (λv² λe²/λε²) E|C M/B e|² + (λv⁴/λε²) E|L*/B* e|².
+
+    Examples
+    --------
+    AR(1) signal in white noise, filtering (m = 0):
+
+    >>> g = kfast.poly.wiener_causal([1, 0], [1, -0.8], 1.0, lam_e2=1.0)
+    >>> g.num.shape, g.den.shape  # G(q) = g0 q / (q + d1)
+    ((2,), (2,))
+    >>> print(round(g.num[0], 6), round(g.den[1], 6), round(g.error_variance, 6))  # P(t|t) of the Kalman filter
+    0.578051 -0.33756 0.578051
+    """
+    C_, A_, lv, M_, N_, le = _signal_and_noise(C, A, lam_v2, M, N, lam_e2)
+    lag = _lag(m)
+    n, r = len(A_) - 1, len(N_) - 1
+    B, lam_eps = _innovations(C_, A_, lv, M_, N_, le)
+    alpha, beta = min(0, -lag), max(0, -lag)
+    # lhs = z^-m C(z) C(z^-1) N(z^-1): top power n - m.
+    # P* = P(z^-1) as powers z^0 .. z^-deg P is the reversed array (kfast.poly.reciprocal).
+    lhs = polymul(laurent(C_, C_), reciprocal(N_))
+    lhs_top = n - lag
+    deg_R = n - alpha
+    deg_L = n + r - 1 + beta
+    R, L_star = _two_sided(lhs, lhs_top, reciprocal(B), alpha, deg_R, A_, beta, deg_L)
+    gain = lv / lam_eps
+    # G = gain z^alpha R N / B: as num/den in q, z^alpha moves to the denominator.
+    num = gain * polymul(R, N_)
+    den = np.r_[B, np.zeros(-alpha)]
+    first = lv * le / lam_eps * _variance_of(polymul(C_, M_), B)
+    second = lv**2 / lam_eps * _variance_of(L_star, B)
+    num_t = trim(num)
+    return WienerFilter(num=num_t, den=den, error_variance=first + second, lag=lag, num_top=len(num_t) - 1, den_top=len(den) - 1)
+
+
+def wiener_noncausal(
+    C: ArrayLike,
+    A: ArrayLike,
+    lam_v2: float,
+    M: Optional[ArrayLike] = None,
+    N: Optional[ArrayLike] = None,
+    lam_e2: float = 1.0,
+    m: int = 0,
+) -> WienerFilter:
+    """The non-causal (unrealizable) Wiener filter G = φ_sy/φ_y = z^-m (λv²/λε²) C C* N N*/(B B*)
+    (Söderström (7.47)), as Laurent numerator and denominator; its error variance
+    (λv² λe²/λε²) E|C M/B e|² is the lower bound of every causal filter's (7.93)."""
+    C_, A_, lv, M_, N_, le = _signal_and_noise(C, A, lam_v2, M, N, lam_e2)
+    lag = _lag(m)
+    n, r = len(A_) - 1, len(N_) - 1
+    B, lam_eps = _innovations(C_, A_, lv, M_, N_, le)
+    num = lv / lam_eps * laurent(polymul(C_, N_), polymul(C_, N_))
+    den = laurent(B, B)
+    variance = lv * le / lam_eps * _variance_of(polymul(C_, M_), B)
+    return WienerFilter(num=num, den=den, error_variance=variance, lag=lag, num_top=n + r - lag, den_top=n + r)
+
+
+def wiener_fir(
+    C: ArrayLike,
+    A: ArrayLike,
+    lam_v2: float,
+    order: int,
+    M: Optional[ArrayLike] = None,
+    N: Optional[ArrayLike] = None,
+    lam_e2: float = 1.0,
+    m: int = 0,
+) -> WienerFilter:
+    """The FIR Wiener filter ŝ(t - m) = Σ_{j=0}^{order} g_j y(t - j): the normal equations
+    Σ_j r_y(i - j) g_j = r_s(i - m), i = 0..order (orthogonality), error variance
+    r_s(0) - g' r_s(· - m). Covariances from the state-space models of s and w (Lyapunov)."""
+    from kfast.poly.arma import arma_to_ss
+
+    C_, A_, lv, M_, N_, le = _signal_and_noise(C, A, lam_v2, M, N, lam_e2)
+    p = index("order", order)
+    lag = _lag(m)
+    lags = np.arange(0, p + abs(lag) + 1)
+
+    def cov(top: np.ndarray, bottom: np.ndarray, lam: float) -> np.ndarray:
+        if len(bottom) == 1:  # white: r(0) = λ top0², MA terms none (monic, degree 0)
+            out = np.zeros(len(lags))
+            out[0] = lam
+            return out
+        return arma_to_ss(bottom, top, lam).autocovariance(lags)[:, 0, 0]
+
+    r_s, r_w = cov(C_, A_, lv), cov(M_, N_, le)
+    r_y = r_s + r_w
+    T = r_y[np.abs(np.subtract.outer(np.arange(p + 1), np.arange(p + 1)))]
+    r_sy = np.array([r_s[abs(i - lag)] for i in range(p + 1)])
+    g = np.linalg.solve(T, r_sy)
+    return WienerFilter(num=g, den=np.ones(1), error_variance=float(r_s[0] - g @ r_sy), lag=lag, num_top=0, den_top=0)
