@@ -197,6 +197,7 @@ class Entry:
     raw: bool = False  # a compiled method that takes C-contiguous float64 arrays only: fuzzed for shapes
     validator: Optional[tuple] = None  # (entry name, {arg: arg}) mapping of the sibling call
     complex_ok: bool = False  # complex arrays are valid input (the Riccati and Lyapunov solvers)
+    complex_model: bool = False  # complex arrays make a complex-valued model (another result type)
 
     def render(self, args: dict) -> str:
         placed = set(re.findall(r"\{(\w+)\}", self.template)) - {"kw"}
@@ -242,6 +243,7 @@ _ENTRY_LIST = [
             Arg("D", "np.ones((2, 2))", shape=(2, 2), stackable=True, none_ok=True),
             Arg("N", "0.1 * np.eye(3, 2)", shape=(3, 2), stackable=True, none_ok=True),
         ),
+        complex_model=True,
     ),
     Entry("filter", "io", "M.filter({kw})", (*_IO, _FORM, Arg("converge_tol", "None", kind="float", optional=True),
                                              Arg("outputs", "None", kind="outputs", optional=True)), validator=None),
@@ -397,6 +399,7 @@ _ENTRY_LIST = [
         "kfast.LinearGaussian.from_continuous({kw})",
         (Arg("A", "AH", shape=(2, 2)), Arg("Qc", "Q2", shape=(2, 2), cov=True), Arg("H", "H2", shape=(1, 2), stackable=True, names=("H", "R")),
          Arg("R", "R1", shape=(1, 1), alt_shapes=((),), cov=True, stackable=True), Arg("dt", "0.1", kind="float")),
+        complex_model=True,
     ),
     Entry("kalman_bucy", "ric", "kfast.kalman_bucy({kw})",
           (Arg("A", "AC", shape=(2, 2)), Arg("Qc", "Q2", shape=(2, 2), cov=True), Arg("H", "H2", shape=(1, 2)),

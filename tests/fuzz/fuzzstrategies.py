@@ -93,6 +93,10 @@ def form_case_for(entry: Entry, arg: Arg, form: str, i: int = 0) -> Case:
     expr = template.format(a=arg.good, i=i)
     if (arg.optional or arg.none_ok) and form == "None":
         return _make(entry, arg, expr, "form", form, "either")
+    if entry.complex_model and form in ("complex", "complex-zero-imag"):
+        # A complex matrix makes a complex-valued model (kfast.linear.complex), or is refused
+        # naming the argument (e.g. a complex A of from_continuous).
+        return _make(entry, arg, expr, "form", form, "either")
     if entry.complex_ok and form == "complex":
         # A complex equation: solved, or refused naming the argument (a non-Hermitian q, r).
         return _make(entry, arg, expr, "form", form, "either")

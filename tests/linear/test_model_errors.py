@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import kfast
+from kfast.linear.complex import ComplexLinearGaussian
 from badinput import ASYM, NOT_PSD, T, data, fails, full_model, model_mats, msg, per_step_model, stack
 
 
@@ -182,15 +183,22 @@ def test_model_per_step_non_finite_at_step_4(arg, bad):
 
 @pytest.mark.parametrize("arg", ["F", "H", "Q", "R", "B", "D", "N"])
 def test_model_complex_matrix(arg):
+    """A complex matrix makes a complex-valued model (tests/linear/test_complex.py), which
+    checks its Hermitian covariances by name."""
     mats = model_mats()
     mats[arg] = mats[arg] + 0j
-    with fails(msg(arg, r"complex")):
-        kfast.LinearGaussian(**mats)
+    model = kfast.LinearGaussian(**mats)
+    assert isinstance(model, ComplexLinearGaussian)
+    if arg in ("Q", "R"):
+        mats[arg] = mats[arg] + 1j * np.triu(np.ones(mats[arg].shape), 1)
+        with fails(msg(arg, r"Hermitian")):
+            kfast.LinearGaussian(**mats)
 
 
 def test_model_complex_scalar():
-    with fails(msg("F", r"complex")):
-        kfast.LinearGaussian(0.5 + 1j, 1.0, 1.0, 1.0)
+    assert isinstance(kfast.LinearGaussian(0.5 + 1j, 1.0, 1.0, 1.0), ComplexLinearGaussian)
+    with fails(msg("Q", r"Hermitian")):
+        kfast.LinearGaussian(0.5, 1.0, 1.0 + 1j, 1.0)
 
 
 # --------------------------------------------------------------------------------------------

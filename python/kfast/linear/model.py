@@ -301,6 +301,11 @@ class LinearGaussian:
         Input matrix of the output.
     N : array_like, shape (n, m) or (T, n, m), optional
         Cross covariance E[w[t] v[t]'] of the noises at the same step (zero when omitted).
+    Qc, Rc : array_like, optional
+        Complementary covariances E[w w^T], E[v v^T] of improper complex noise. A complex
+        matrix or either of these makes a complex-valued model instead
+        (:class:`kfast.linear.complex.ComplexLinearGaussian`: filter, smooth and loglik
+        through the real composite form, results complex).
 
     Raises
     ------
@@ -332,6 +337,17 @@ class LinearGaussian:
     kfast.KfastError: Q: not positive semidefinite ...
     """
 
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        # A complex matrix (or a complementary covariance Qc, Rc) makes a complex model, filtered
+        # through its real composite form (kfast.linear.complex; docs/algorithms.md "Complex-valued models").
+        from kfast.linear.complex import ComplexLinearGaussian, is_complex_model
+
+        names = ("F", "H", "Q", "R", "B", "D", "N")
+        values = tuple(args[: len(names)]) + tuple(kwargs.get(k) for k in names[len(args):])
+        if cls is LinearGaussian and is_complex_model(values, kwargs.get("Qc"), kwargs.get("Rc")):
+            return ComplexLinearGaussian(*args, **kwargs)
+        return super().__new__(cls)
+
     def __init__(
         self,
         F: ArrayLike,
@@ -341,7 +357,11 @@ class LinearGaussian:
         B: Optional[ArrayLike] = None,
         D: Optional[ArrayLike] = None,
         N: Optional[ArrayLike] = None,
+        Qc: Optional[ArrayLike] = None,
+        Rc: Optional[ArrayLike] = None,
     ) -> None:
+        if Qc is not None or Rc is not None:  # (a complex model is made by __new__)
+            raise _kfast.KfastError("Qc: complementary covariances belong to complex models")
         given = {"F": F, "H": H, "Q": Q, "R": R, "B": B, "D": D, "N": N}
         for name in ("F", "H", "Q", "R"):
             if given[name] is None:
