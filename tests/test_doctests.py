@@ -33,6 +33,7 @@ MODULES = [
     "kfast.control.lqg",
     "kfast.control.dp",
     "kfast.control.polynomial",
+    "kfast.control.adaptive",
     "kfast.poly.spectral",
     "kfast.poly.equations",
     "kfast.poly.arma",

@@ -219,13 +219,17 @@ class ComplexLinearGaussian:
         yc = np.asarray(y)
         if yc.dtype.kind not in "fiuc":
             raise KfastError(f"y: expected numbers, got dtype {yc.dtype}")
-        yc = np.array(yc, dtype=np.complex128)
         if yc.ndim == 1 and m == 1:
             yc = yc[:, None]
         if yc.ndim != 2 or yc.shape[1] != m:
             raise KfastError(f"y: expected shape (T, {m}), got {yc.shape}")
-        missing = np.isnan(yc.real) | np.isnan(yc.imag)
-        yr = np.concatenate([np.where(missing, np.nan, yc.real), np.where(missing, np.nan, yc.imag)], axis=1)
+        yr = np.empty((len(yc), 2 * m))
+        yr[:, :m] = yc.real
+        yr[:, m:] = yc.imag if np.iscomplexobj(yc) else 0.0
+        missing = np.isnan(yr[:, :m]) | np.isnan(yr[:, m:])
+        if missing.any():  # a component is missing when either part is
+            yr[:, :m][missing] = np.nan
+            yr[:, m:][missing] = np.nan
         x0c = _complex("x0", x0, ndim_min=1).reshape(-1)
         if x0c.shape != (n,):
             raise KfastError(f"x0: expected {n} entries, got {x0c.shape}")
