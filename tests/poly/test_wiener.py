@@ -130,3 +130,50 @@ def test_bad_input():
         kfast.poly.wiener_causal([1.0, 0.0], [1.0, -0.8], -1.0)
     with pytest.raises(ValueError, match="order: expected an integer"):
         kfast.poly.wiener_fir([1.0, 0.0], [1.0, -0.8], 1.0, order=2.5)
+
+
+@pytest.mark.parametrize("m", [0, 2, -1])
+@pytest.mark.parametrize("seed", range(4))
+def test_error_spectrum_integrates_to_the_error_variance(seed, m):
+    """(7.89): the error spectrum's mean over the circle is the error variance, for the causal,
+    non-causal and FIR filters alike, and the non-causal spectrum is a pointwise lower bound (7.93)."""
+    spec, _ = problem(seed)
+    w = np.linspace(0, 2 * np.pi, 1 << 14, endpoint=False)
+    filters = [kfast.poly.wiener_causal(**spec, m=m), kfast.poly.wiener_noncausal(**spec, m=m),
+               kfast.poly.wiener_fir(**spec, order=8, m=m)]
+    for g in filters:
+        assert g.error_spectrum(w).mean() == pytest.approx(g.error_variance, rel=1e-8)
+    bound = filters[1].error_spectrum(w)
+    assert np.all(filters[0].error_spectrum(w) >= bound - 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_prefiltered_criterion(seed):
+    """(7.94)-(7.104): P = 1 gives the plain filter; a prefilter minimises E[P s̃]² (every
+    perturbation of the filter's numerator does worse in that criterion), and a resonance of
+    P at ω0 makes the error spectrum touch the non-causal bound there."""
+    spec, rng = problem(seed)
+    plain = kfast.poly.wiener_causal(**spec)
+    same = kfast.poly.wiener_causal(**spec, prefilter=([1.0, 0.0], [1.0, 0.0]))
+    assert same.error_variance == pytest.approx(plain.error_variance, rel=1e-10)
+    w0 = rng.uniform(0.3, 2.5)
+    Fp = [1.0, 0.0, 0.0]
+    Hp = np.real(np.poly([0.995 * np.exp(1j * w0), 0.995 * np.exp(-1j * w0)]))
+    g = kfast.poly.wiener_causal(**spec, prefilter=(Fp, Hp))
+    w = np.linspace(0, 2 * np.pi, 1 << 15, endpoint=False)
+    weight = np.abs(np.polyval(Fp, np.exp(1j * w)) / np.polyval(Hp, np.exp(1j * w))) ** 2
+
+    def criterion(f):
+        return float(np.mean(weight * f.error_spectrum(w)))
+
+    best = criterion(g)
+    assert best < criterion(plain)
+    from dataclasses import replace
+
+    for _ in range(3):
+        other = replace(g, num=g.num * (1 + 1e-3 * rng.standard_normal(g.num.shape)))
+        assert criterion(other) > best
+    bound = kfast.poly.wiener_noncausal(**spec)
+    at = np.array([w0])
+    assert g.error_spectrum(at)[0] == pytest.approx(bound.error_spectrum(at)[0], rel=2e-2)
+    assert abs(plain.error_spectrum(at)[0] - bound.error_spectrum(at)[0]) > abs(g.error_spectrum(at)[0] - bound.error_spectrum(at)[0])

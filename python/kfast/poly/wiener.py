@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from kfast._args import index
 from kfast._kfast import KfastError
 from kfast._numbers import positive_real
-from kfast.poly._poly import laurent, monic, polymul, reciprocal, trim
+from kfast.poly._poly import laurent, monic, polymul, polysub, reciprocal, trim
 from kfast.poly.spectral import spectral_factor
 
 __all__ = ["WienerFilter", "wiener_causal", "wiener_noncausal", "wiener_fir"]
@@ -38,6 +38,8 @@ class WienerFilter:
     num_top: int
     """The power of z of num[0] (deg num for a causal filter)."""
     den_top: int
+    model: tuple
+    """(C, A, lam_v2, M, N, lam_e2) of the signal and noise."""
 
     def frequency_response(self, omega: ArrayLike) -> np.ndarray:
         """G(e^{iω}) at the frequencies ``omega`` (rad/sample)."""
@@ -47,6 +49,18 @@ class WienerFilter:
             return np.polyval(c, z) * z ** (top - (len(c) - 1))
 
         return value(self.num, self.num_top) / value(self.den, self.den_top)
+
+    def error_spectrum(self, omega: ArrayLike) -> np.ndarray:
+        """The spectrum of the error s(t - m) - ŝ(t - m) at ``omega``:
+        λv² |e^{-imω} - G|² |C/A|² + λe² |G|² |M/N|² (for the causal filter Söderström (7.89),
+        for the non-causal one the bound (7.93)); its mean over [0, 2π) is the error variance."""
+        C, A, lv, M, N, le = self.model
+        w = np.asarray(omega, float)
+        z = np.exp(1j * w)
+        G = self.frequency_response(w)
+        phi_s = lv * np.abs(np.polyval(C, z) / np.polyval(A, z)) ** 2
+        phi_w = le * np.abs(np.polyval(M, z) / np.polyval(N, z)) ** 2
+        return np.abs(np.exp(-1j * self.lag * w) - G) ** 2 * phi_s + np.abs(G) ** 2 * phi_w
 
     def __repr__(self) -> str:
         return f"WienerFilter(lag={self.lag}, error_variance={self.error_variance:.6g})"
@@ -90,7 +104,7 @@ def _variance_of(num: np.ndarray, den: np.ndarray) -> float:
 
     num = trim(np.asarray(num, float))
     extra = max(0, len(num) - len(den))
-    return closed_loop_variance(num, np.r_[den, np.zeros(extra)] / den[0])
+    return closed_loop_variance(num / den[0], np.r_[den, np.zeros(extra)] / den[0])
 
 
 def _two_sided(lhs: np.ndarray, lhs_top: int, Bstar: np.ndarray, alpha: int, deg_R: int, A_: np.ndarray, beta: int, deg_L: int) -> tuple[np.ndarray, np.ndarray]:
@@ -129,12 +143,18 @@ def wiener_causal(
     N: Optional[ArrayLike] = None,
     lam_e2: float = 1.0,
     m: int = 0,
+    prefilter: Optional[tuple] = None,
 ) -> WienerFilter:
     """The causal (realizable) Wiener filter, the minimum-variance estimate of s(t - m) from y
     up to t (Söderström (7.76)-(7.89)): the spectral factor (7.80) λε² B B*, the two-sided
     Diophantine equation z^-m C C* N* = z^min(0,-m) B* R + z^max(0,-m) A L* (7.84) and
     G = (λv²/λε²) z^min(0,-m) R N / B (7.86). Error variance from (7.89):
     (λv² λe²/λε²) E|C M/B e|² + (λv⁴/λε²) E|L*/B* e|².
+
+    ``prefilter=(Fp, Hp)`` minimises E[P(q) s̃(t)]² instead, P = Fp/Hp monic of equal degree with
+    zeros strictly inside (7.94)-(7.104): z^-m Fp C C* N* = z^min(0,-m) B* R̃ + z^max(0,-m) Hp A L0*
+    (7.103) and G = (λv²/λε²) z^min(0,-m) R̃ N / (B Fp) (7.104); ``error_variance`` is then still
+    E s̃² (not the weighted criterion), from the error spectrum.
 
     Examples
     --------
@@ -149,23 +169,54 @@ def wiener_causal(
     C_, A_, lv, M_, N_, le = _signal_and_noise(C, A, lam_v2, M, N, lam_e2)
     lag = _lag(m)
     n, r = len(A_) - 1, len(N_) - 1
+    Fp, Hp = _prefilter(prefilter)
+    dp = len(Fp) - 1
     B, lam_eps = _innovations(C_, A_, lv, M_, N_, le)
     alpha, beta = min(0, -lag), max(0, -lag)
-    # lhs = z^-m C(z) C(z^-1) N(z^-1): top power n - m.
-    # P* = P(z^-1) as powers z^0 .. z^-deg P is the reversed array (kfast.poly.reciprocal).
-    lhs = polymul(laurent(C_, C_), reciprocal(N_))
-    lhs_top = n - lag
-    deg_R = n - alpha
+    # lhs = z^-m Fp(z) C(z) C(z^-1) N(z^-1): top power n + dp - m. P* = P(z^-1) as powers
+    # z^0 .. z^-deg P is the reversed array (kfast.poly.reciprocal).
+    lhs = polymul(polymul(Fp, laurent(C_, C_)), reciprocal(N_))
+    lhs_top = n + dp - lag
+    deg_R = n + dp - alpha
     deg_L = n + r - 1 + beta
-    R, L_star = _two_sided(lhs, lhs_top, reciprocal(B), alpha, deg_R, A_, beta, deg_L)
-    gain = lv / lam_eps
-    # G = gain z^alpha R N / B: as num/den in q, z^alpha moves to the denominator.
-    num = gain * polymul(R, N_)
-    den = np.r_[B, np.zeros(-alpha)]
-    first = lv * le / lam_eps * _variance_of(polymul(C_, M_), B)
-    second = lv**2 / lam_eps * _variance_of(L_star, B)
-    num_t = trim(num)
-    return WienerFilter(num=num_t, den=den, error_variance=first + second, lag=lag, num_top=len(num_t) - 1, den_top=len(den) - 1)
+    R, L_star = _two_sided(lhs, lhs_top, reciprocal(B), alpha, deg_R, polymul(Hp, A_), beta, deg_L)
+    # G = gain z^alpha R N / (B Fp): as num/den in q, z^alpha moves to the denominator.
+    num = trim(lv / lam_eps * polymul(R, N_))
+    den = np.r_[polymul(B, Fp), np.zeros(-alpha)]
+    model = (C_, A_, lv, M_, N_, le)
+    if dp == 0:  # (7.89): the bound plus what causality costs
+        variance = lv * le / lam_eps * _variance_of(polymul(C_, M_), B) + lv**2 / lam_eps * _variance_of(L_star, B)
+    else:
+        variance = _error_variance(num, den, lag, model)
+    return WienerFilter(num=num, den=den, error_variance=variance, lag=lag, num_top=len(num) - 1, den_top=len(den) - 1, model=model)
+
+
+def _prefilter(prefilter: Optional[tuple]) -> tuple[np.ndarray, np.ndarray]:
+    if prefilter is None:
+        return np.ones(1), np.ones(1)
+    try:
+        Fp, Hp = prefilter
+    except (TypeError, ValueError):
+        raise KfastError("prefilter: expected (Fp, Hp), the numerator and denominator of P(q)") from None
+    Fp, Hp = monic("prefilter", Fp), monic("prefilter", Hp)
+    if len(Fp) != len(Hp):
+        raise KfastError(f"prefilter: Fp and Hp must have equal degree, got {len(Fp) - 1} and {len(Hp) - 1}")
+    for p in (Fp, Hp):
+        if len(p) > 1 and np.abs(np.roots(p)).max() >= 1.0:
+            raise KfastError("prefilter: Fp and Hp must have their zeros strictly inside the unit circle")
+    return Fp, Hp
+
+
+def _error_variance(num: np.ndarray, den: np.ndarray, lag: int, model: tuple) -> float:
+    """E s̃² for ŝ(t - m) = (num/den) y (den monic, causal): λv² E|(z^-m - G) C/A v|² + λe² E|G M/N e|²,
+    each a rational filter made polynomial by powers of z (which keep the modulus on the circle)."""
+    C, A, lv, M, N, le = model
+    k = max(lag, 0)
+    # (z^-m - num/den) = (z^(k-m) den - z^k num) / (z^k den)
+    v_part = polymul(polysub(np.r_[den, np.zeros(k - lag)], np.r_[num, np.zeros(k)]), C)
+    v_den = polymul(np.r_[den, np.zeros(k)], A)
+    e_num, e_den = polymul(num, M), polymul(den, N)
+    return lv * _variance_of(v_part, v_den) + le * _variance_of(e_num, e_den)
 
 
 def wiener_noncausal(
@@ -187,7 +238,8 @@ def wiener_noncausal(
     num = lv / lam_eps * laurent(polymul(C_, N_), polymul(C_, N_))
     den = laurent(B, B)
     variance = lv * le / lam_eps * _variance_of(polymul(C_, M_), B)
-    return WienerFilter(num=num, den=den, error_variance=variance, lag=lag, num_top=n + r - lag, den_top=n + r)
+    model = (C_, A_, lv, M_, N_, le)
+    return WienerFilter(num=num, den=den, error_variance=variance, lag=lag, num_top=n + r - lag, den_top=n + r, model=model)
 
 
 def wiener_fir(
@@ -222,4 +274,5 @@ def wiener_fir(
     T = r_y[np.abs(np.subtract.outer(np.arange(p + 1), np.arange(p + 1)))]
     r_sy = np.array([r_s[abs(i - lag)] for i in range(p + 1)])
     g = np.linalg.solve(T, r_sy)
-    return WienerFilter(num=g, den=np.ones(1), error_variance=float(r_s[0] - g @ r_sy), lag=lag, num_top=0, den_top=0)
+    model = (C_, A_, lv, M_, N_, le)
+    return WienerFilter(num=g, den=np.ones(1), error_variance=float(r_s[0] - g @ r_sy), lag=lag, num_top=0, den_top=0, model=model)
