@@ -61,3 +61,28 @@ def test_causal_wiener_by_the_fft_causal_projection(seed, m):
         h[t] = (num[t] if t < len(num) else 0.0) - sum(g.den[i] * h[t - i] for i in range(1, len(g.den)) if t - i >= 0)
     np.testing.assert_allclose(h, h_ref[:60], atol=1e-7)
     assert g.error_variance == pytest.approx(error_ref, rel=1e-7)
+
+
+def causal_part_fft(G, top, D, P, grid=1 << 14):
+    """[G / (D P*)]_+ by the FFT: the coefficients of z^0, z^-1, ... of the expansion on the circle."""
+    w = 2 * np.pi * np.arange(grid) / grid
+    z = np.exp(1j * w)
+    Gz = np.polyval(G, z) * z ** (top - (len(G) - 1))
+    Pstar = np.polyval(P, 1 / z)
+    x = np.fft.ifft(Gz / (np.polyval(D, z) * Pstar))  # x[k] = coefficient of z^-k
+    x[grid // 2:] = 0.0
+    return np.fft.ifft(np.fft.fft(x)).real  # the causal impulse response
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_causal_part_by_the_fft_projection(seed):
+    rng = np.random.default_rng(300 + seed)
+    G = rng.standard_normal(int(rng.integers(1, 7)))
+    top = int(rng.integers(-2, 5))
+    D, P = stable_monic(rng, int(rng.integers(1, 4))), stable_monic(rng, int(rng.integers(0, 3)))
+    num, den = kfast.poly.causal_part(G, top, D, P)
+    h = np.zeros(40)
+    lead = np.r_[np.zeros(max(0, len(den) - len(num))), num]
+    for t in range(40):
+        h[t] = (lead[t] if t < len(lead) else 0.0) - sum(den[i] * h[t - i] for i in range(1, len(den)) if t - i >= 0)
+    np.testing.assert_allclose(h, causal_part_fft(G, top, D, P)[:40], atol=1e-9)

@@ -5,7 +5,8 @@ an ARMA(X) model is A(q) y = B(q) u + C(q) e, var e = λ².
 - :func:`spectral_factor` — λ² B B* (/ A A*) of a rational spectrum, by the zeros or by the
   Riccati equation (Thm 4.2); the two routes agree.
 - :func:`diophantine` — A X + B Y = C (the Sylvester system); :func:`predictor_identity` —
-  z^(k-1) C = A F + L (7.13).
+  z^(k-1) C = A F + L (7.13); :func:`causal_part` — [G / (D P*)]_+ by the two-sided
+  Diophantine equation (7.64)-(7.70).
 - :func:`arma_predictor` — the k-step predictor q L / C (7.18), with C's zeros reflected into
   the unit circle first (:func:`invertible`, Example 7.1).
 - :func:`wiener_causal`, :func:`wiener_noncausal`, :func:`wiener_fir` — Wiener filters of a
@@ -18,7 +19,7 @@ an ARMA(X) model is A(q) y = B(q) u + C(q) e, var e = λ².
 
 from kfast.poly._poly import laurent, polyadd, polymul, polysub, reciprocal
 from kfast.poly.arma import ArmaPredictor, arma_predictor, arma_to_ss, invertible, ss_to_arma
-from kfast.poly.equations import Diophantine, diophantine, predictor_identity
+from kfast.poly.equations import Diophantine, causal_part, diophantine, predictor_identity
 from kfast.poly.spectral import SpectralFactor, evaluate_spectrum, spectral_factor
 from kfast.poly.wiener import WienerFilter, wiener_causal, wiener_fir, wiener_noncausal
 
@@ -27,6 +28,7 @@ __all__ = [
     "evaluate_spectrum",
     "diophantine",
     "predictor_identity",
+    "causal_part",
     "arma_predictor",
     "invertible",
     "arma_to_ss",

@@ -9,10 +9,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast._args import index
+from kfast._arrays import as_float64
 from kfast._kfast import KfastError
 from kfast.poly._poly import monic, poly, trim
 
-__all__ = ["Diophantine", "diophantine", "predictor_identity"]
+__all__ = ["Diophantine", "diophantine", "predictor_identity", "two_sided", "causal_part"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -104,3 +105,77 @@ def predictor_identity(A: ArrayLike, C: ArrayLike, k: int) -> tuple[np.ndarray, 
     L = trim(np.atleast_1d(L))
     L = np.pad(L, (max(n - len(L), 0), 0))[-n:] if n else np.zeros(0)
     return F, L
+
+
+def two_sided(lhs: np.ndarray, lhs_top: int, Bstar: np.ndarray, alpha: int, deg_R: int, A_: np.ndarray, beta: int, deg_L: int) -> tuple[np.ndarray, np.ndarray]:
+    """Solve lhs(z) = z^alpha B*(z) R(z) + z^beta A(z) L*(z) for R (a polynomial in z of degree
+    deg_R) and L* (a polynomial in z^-1 of degree deg_L) by matching Laurent coefficients
+    (Söderström (7.64)-(7.70)); Bstar = B(z^-1) as coefficients of z^0 .. z^-(deg B).
+    Returns R (descending powers of z) and L* (coefficients of z^0 .. z^-deg_L)."""
+    columns = []
+    for j in range(deg_R + 1):  # z^j R-term: z^(alpha + j) B*(z)
+        columns.append((alpha + j, Bstar))
+    for j in range(deg_L + 1):  # z^-j L*-term: z^(beta - j) A(z)
+        columns.append((beta - j + len(A_) - 1, A_))
+    tops = [top for top, _ in columns] + [lhs_top]
+    bottoms = [top - (len(c) - 1) for top, c in columns] + [lhs_top - (len(lhs) - 1)]
+    hi, lo = max(tops), min(bottoms)
+    rows = hi - lo + 1
+    M = np.zeros((rows, len(columns)))
+    for k, (top, c) in enumerate(columns):
+        M[hi - top: hi - top + len(c), k] = c
+    rhs = np.zeros(rows)
+    rhs[hi - lhs_top: hi - lhs_top + len(lhs)] = lhs
+    sol, *_ = np.linalg.lstsq(M, rhs, rcond=None)
+    scale = max(1.0, float(np.abs(rhs).max()))
+    if np.abs(M @ sol - rhs).max() > 1e-8 * scale:
+        raise KfastError("the two-sided Diophantine equation (7.84) has no solution: are B and A coprime?")
+    R = sol[: deg_R + 1][::-1]  # coefficients of z^deg_R .. z^0
+    L_star = sol[deg_R + 1:]  # coefficients of z^0 .. z^-deg_L
+    return R, L_star
+
+
+def causal_part(G: ArrayLike, top: int, D: ArrayLike, P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The causal part [G(z, z^-1) / (D(z) P(z^-1))]_+ (Söderström (7.64)-(7.70)): the terms in
+    z^0, z^-1, ... (g_0 included) of the expansion, which is z^α R(z) / D(z) with R from the
+    two-sided Diophantine equation G = z^α P* R + z^β D L* (7.65), α = min(0, μ - p),
+    β = max(0, ℓ - ν) (7.67). The partial-fraction split that keeps D's (stable) poles.
+
+    Parameters
+    ----------
+    G : array_like
+        Laurent coefficients from z^top down to z^-(len(G) - 1 - top).
+    top : int
+        The power of z of G[0].
+    D : array_like
+        Monic, zeros strictly inside the unit circle (degree ν).
+    P : array_like
+        Monic, zeros strictly inside (degree μ): the denominator factor is P(z^-1), whose zeros
+        1/z̄ are outside.
+
+    Returns
+    -------
+    (num, den)
+        The causal part as num(q)/den(q) in descending powers (den = D q^-α).
+
+    Examples
+    --------
+    Söderström Example 7.7: [z^k C / A]_+ with k = 2 is z L / A of the predictor identity.
+
+    >>> num, den = kfast.poly.causal_part([1, 0.5, 0, 0], 3, [1, -0.8], [1])  # z^2 (z + 0.5) / (z - 0.8)
+    >>> print(num.round(12), den)
+    [1.04 0.  ] [ 1.  -0.8]
+    """
+    D_, P_ = monic("D", D), monic("P", P)
+    G_ = np.atleast_1d(as_float64("G", G)).ravel()
+    if not np.all(np.isfinite(G_)) or G_.size == 0:
+        raise KfastError("G: expected a non-empty array of finite Laurent coefficients")
+    for name, factor in (("D", D_), ("P", P_)):
+        if len(factor) > 1 and np.abs(np.roots(factor)).max() >= 1.0:
+            raise KfastError(f"{name}: must have its zeros strictly inside the unit circle")
+    top_ = int(top)
+    nu, mu = len(D_) - 1, len(P_) - 1
+    ell, p = max(top_, 0), max(len(G_) - 1 - top_, 0)
+    alpha, beta = min(0, mu - p), max(0, ell - nu)
+    R, _ = two_sided(G_, top_, P_[::-1], alpha, nu - alpha, D_, beta, mu + beta - 1)
+    return trim(R), np.r_[D_, np.zeros(-alpha)]

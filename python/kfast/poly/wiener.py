@@ -20,6 +20,7 @@ from kfast._args import index
 from kfast._kfast import KfastError
 from kfast._numbers import positive_real
 from kfast.poly._poly import laurent, monic, polymul, polysub, reciprocal, trim
+from kfast.poly.equations import two_sided
 from kfast.poly.spectral import spectral_factor
 
 __all__ = ["WienerFilter", "wiener_causal", "wiener_noncausal", "wiener_fir"]
@@ -107,34 +108,6 @@ def _variance_of(num: np.ndarray, den: np.ndarray) -> float:
     return closed_loop_variance(num / den[0], np.r_[den, np.zeros(extra)] / den[0])
 
 
-def _two_sided(lhs: np.ndarray, lhs_top: int, Bstar: np.ndarray, alpha: int, deg_R: int, A_: np.ndarray, beta: int, deg_L: int) -> tuple[np.ndarray, np.ndarray]:
-    """Solve lhs(z) = z^alpha B*(z) R(z) + z^beta A(z) L*(z) for R (a polynomial in z of degree
-    deg_R) and L* (a polynomial in z^-1 of degree deg_L) by matching Laurent coefficients
-    (Söderström (7.64)-(7.70)); Bstar = B(z^-1) as coefficients of z^0 .. z^-(deg B).
-    Returns R (descending powers of z) and L* (coefficients of z^0 .. z^-deg_L)."""
-    columns = []
-    for j in range(deg_R + 1):  # z^j R-term: z^(alpha + j) B*(z)
-        columns.append((alpha + j, Bstar))
-    for j in range(deg_L + 1):  # z^-j L*-term: z^(beta - j) A(z)
-        columns.append((beta - j + len(A_) - 1, A_))
-    tops = [top for top, _ in columns] + [lhs_top]
-    bottoms = [top - (len(c) - 1) for top, c in columns] + [lhs_top - (len(lhs) - 1)]
-    hi, lo = max(tops), min(bottoms)
-    rows = hi - lo + 1
-    M = np.zeros((rows, len(columns)))
-    for k, (top, c) in enumerate(columns):
-        M[hi - top: hi - top + len(c), k] = c
-    rhs = np.zeros(rows)
-    rhs[hi - lhs_top: hi - lhs_top + len(lhs)] = lhs
-    sol, *_ = np.linalg.lstsq(M, rhs, rcond=None)
-    scale = max(1.0, float(np.abs(rhs).max()))
-    if np.abs(M @ sol - rhs).max() > 1e-8 * scale:
-        raise KfastError("the two-sided Diophantine equation (7.84) has no solution: are B and A coprime?")
-    R = sol[: deg_R + 1][::-1]  # coefficients of z^deg_R .. z^0
-    L_star = sol[deg_R + 1:]  # coefficients of z^0 .. z^-deg_L
-    return R, L_star
-
-
 def wiener_causal(
     C: ArrayLike,
     A: ArrayLike,
@@ -179,7 +152,7 @@ def wiener_causal(
     lhs_top = n + dp - lag
     deg_R = n + dp - alpha
     deg_L = n + r - 1 + beta
-    R, L_star = _two_sided(lhs, lhs_top, reciprocal(B), alpha, deg_R, polymul(Hp, A_), beta, deg_L)
+    R, L_star = two_sided(lhs, lhs_top, reciprocal(B), alpha, deg_R, polymul(Hp, A_), beta, deg_L)
     # G = gain z^alpha R N / (B Fp): as num/den in q, z^alpha moves to the denominator.
     num = trim(lv / lam_eps * polymul(R, N_))
     den = np.r_[polymul(B, Fp), np.zeros(-alpha)]
