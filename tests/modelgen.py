@@ -25,6 +25,19 @@ def random_spd(rng, n, jitter=0.1):
     return A @ A.T / n + jitter * np.eye(n)
 
 
+def stable_monic(rng, degree, radius=0.9):
+    """A monic real polynomial of the given degree with seeded random zeros (real ones and
+    conjugate pairs) inside |z| < radius; np.ones(1) for degree 0."""
+    zeros = []
+    while len(zeros) < degree:
+        if degree - len(zeros) >= 2 and rng.uniform() < 0.5:
+            z = rng.uniform(0.05, radius) * np.exp(1j * rng.uniform(0.1, np.pi - 0.1))
+            zeros += [z, np.conj(z)]
+        else:
+            zeros.append(rng.uniform(-radius, radius))
+    return np.atleast_1d(np.real(np.poly(zeros)))
+
+
 def random_transition(rng, n, radius):
     F = rng.standard_normal((n, n))
     rho = max(abs(np.linalg.eigvals(F)))

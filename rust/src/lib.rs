@@ -58,6 +58,8 @@
 //!   ([`multiple::ModeFilter`]), modes of different sizes related by [`multiple::StateMap`]s.
 //! - [`control::lqr`] / [`control::lq_finite`]: LQ regulators u = −L x, stationary and over a
 //!   finite horizon (Söderström ch. 11), on the same Riccati code by duality.
+//! - [`poly`]: polynomial methods — zeros, the spectral factor, the Diophantine equation and the
+//!   predictor identity (Söderström ch. 7).
 //! - [`Error`]: every public function returns `Result<_, Error>`; nothing panics on bad input.
 //!
 //! ```
@@ -77,6 +79,7 @@ pub mod error;
 pub mod linear;
 pub mod multiple;
 pub mod nonlinear;
+pub mod poly;
 #[cfg(feature = "python")]
 mod python;
 pub mod riccati;

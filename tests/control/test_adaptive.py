@@ -12,7 +12,6 @@ import kfast
 
 
 def expected_cost(u, theta, P, y_past, u_past, r):
-    n = len(theta) // 2
     phi = np.r_[-np.asarray(y_past, float), u, np.asarray(u_past, float)]
     return (phi @ theta - r) ** 2 + phi @ P @ phi  # (10.69) without λ²
 

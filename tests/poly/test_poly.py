@@ -14,21 +14,10 @@ import numpy as np
 import pytest
 
 import kfast
+from modelgen import stable_monic
 from kfast.poly import laurent
 
 CASES = json.loads((Path(__file__).parent.parent / "data" / "textbook_cases.json").read_text())
-
-
-def stable_monic(rng, degree, radius=0.9):
-    """A monic polynomial with random real/complex-pair zeros inside |z| < radius."""
-    zeros = []
-    while len(zeros) < degree:
-        if degree - len(zeros) >= 2 and rng.uniform() < 0.5:
-            z = rng.uniform(0.05, radius) * np.exp(1j * rng.uniform(0.1, np.pi - 0.1))
-            zeros += [z, np.conj(z)]
-        else:
-            zeros.append(rng.uniform(-radius, radius))
-    return np.atleast_1d(np.real(np.poly(zeros)))
 
 
 @pytest.mark.parametrize("seed", range(12))

@@ -9,18 +9,12 @@ import numpy as np
 import pytest
 
 import kfast
+from modelgen import stable_monic as _stable_monic
 from kfast.reference.poly import predictor_triangular, spectral_factor_toeplitz, wiener_causal_fft
 
 
 def stable_monic(rng, degree, radius=0.85):
-    zeros = []
-    while len(zeros) < degree:
-        if degree - len(zeros) >= 2 and rng.uniform() < 0.5:
-            z = rng.uniform(0.05, radius) * np.exp(1j * rng.uniform(0.1, np.pi - 0.1))
-            zeros += [z, np.conj(z)]
-        else:
-            zeros.append(rng.uniform(-radius, radius))
-    return np.atleast_1d(np.real(np.poly(zeros)))
+    return _stable_monic(rng, degree, radius)
 
 
 @pytest.mark.parametrize("seed", range(8))

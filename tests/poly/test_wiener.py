@@ -10,17 +10,7 @@ import numpy as np
 import pytest
 
 import kfast
-
-
-def stable_monic(rng, degree, radius=0.9):
-    zeros = []
-    while len(zeros) < degree:
-        if degree - len(zeros) >= 2 and rng.uniform() < 0.5:
-            z = rng.uniform(0.05, radius) * np.exp(1j * rng.uniform(0.1, np.pi - 0.1))
-            zeros += [z, np.conj(z)]
-        else:
-            zeros.append(rng.uniform(-radius, radius))
-    return np.atleast_1d(np.real(np.poly(zeros)))
+from modelgen import stable_monic
 
 
 def problem(seed):

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike
 from kfast._args import index
 from kfast._kfast import KfastError
 from kfast._numbers import real_scalar
-from kfast.poly._poly import laurent, monic, poly, polyadd, polymul
+from kfast.poly._poly import laurent, monic, poly, polyadd, polymul, require_stable, roots
 from kfast.poly.equations import diophantine, predictor_identity
 from kfast.poly.spectral import spectral_factor
 
@@ -56,7 +56,7 @@ def closed_loop_variance(num: ArrayLike, den: ArrayLike, lam2: float = 1.0) -> f
         raise KfastError(f"num: degree {len(b) - 1} exceeds that of den ({n}): not proper")
     if n == 0:
         return float(lam2 * b[-1] ** 2)
-    if np.any(np.abs(np.roots(d)) >= 1.0 - _CIRCLE_TOL):
+    if np.any(np.abs(roots(d)) >= 1.0 - _CIRCLE_TOL):
         raise KfastError("den: has zeros on or outside the unit circle: the closed loop is not stable")
     b = np.pad(b, (n + 1 - len(b), 0))
     # x = b0 e + (b1 - b0 d1 ...)/(...): observer form with direct term b0.
@@ -75,8 +75,7 @@ def _armax(A: ArrayLike, B: ArrayLike, C: ArrayLike) -> tuple[np.ndarray, np.nda
         raise KfastError(f"C: must have the degree of A ({n}), got {len(C_) - 1}")
     if m >= n:
         raise KfastError(f"B: degree {m} must be below deg A = {n} (a pole excess k = n - m of at least one)")
-    if np.any(np.abs(np.roots(C_)) >= 1.0 - _CIRCLE_TOL):
-        raise KfastError("C: must have its zeros strictly inside the unit circle (use kfast.poly.invertible first)")
+    require_stable("C", C_, _CIRCLE_TOL)
     return A_, B_, C_, n - m
 
 
@@ -118,7 +117,7 @@ def minimum_variance(
     if not (rho_ >= 0 and np.isfinite(rho_)):
         raise KfastError(f"rho: must be a finite number >= 0, got {rho!r}")
     lag = index("delay", delay)
-    zeros = np.roots(B_) if len(B_) > 1 else np.zeros(0)
+    zeros = roots(B_) if len(B_) > 1 else np.zeros(0)
     if rho_ > 0:
         F, L = predictor_identity(A_, C_, k + lag)
         b0 = B_[0]

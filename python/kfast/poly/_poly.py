@@ -8,9 +8,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast._arrays import as_float64
+from kfast import _kfast
 from kfast._kfast import KfastError
 
-__all__ = ["poly", "monic", "polymul", "polyadd", "polysub", "reciprocal", "laurent", "trim"]
+__all__ = ["poly", "monic", "polymul", "polyadd", "polysub", "reciprocal", "laurent", "trim", "roots", "require_stable"]
 
 
 def poly(name: str, value: ArrayLike, allow_zero: bool = False) -> np.ndarray:
@@ -69,3 +70,14 @@ def laurent(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """The Laurent polynomial A(z) B(z^-1) as its coefficients from z^(deg A) down to z^-(deg B)
     (so ``laurent(c, c)`` is the symmetric C C* of a spectrum, centred on z^0)."""
     return polymul(a, reciprocal(b))
+
+
+def roots(p: ArrayLike) -> np.ndarray:
+    """The zeros of p (complex), by the compiled companion-matrix eigenvalue solve."""
+    return _kfast.poly_roots(np.ascontiguousarray(np.atleast_1d(np.asarray(p, dtype=float))))
+
+
+def require_stable(name: str, p: np.ndarray, margin: float = 0.0) -> None:
+    """A clear error unless every zero of p is strictly inside the unit circle (|z| < 1 - margin)."""
+    if len(p) > 1 and np.abs(roots(p)).max() >= 1.0 - margin:
+        raise KfastError(f"{name}: must have its zeros strictly inside the unit circle")

@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike
 
 from kfast._kfast import KfastError
 from kfast._numbers import positive_real
-from kfast.poly._poly import monic, poly, polymul
+from kfast.poly._poly import monic, poly, polymul, roots
 from kfast.poly.equations import predictor_identity
 
 if TYPE_CHECKING:
@@ -30,7 +30,7 @@ def invertible(C: ArrayLike, lam2: float = 1.0) -> tuple[np.ndarray, float]:
     spectrum λ² C C* unchanged. Zeros on the circle have no invertible form (an error)."""
     C_ = monic("C", C)
     lam = positive_real("lam2", lam2)
-    zeros = np.roots(C_)
+    zeros = roots(C_)
     radius = np.abs(zeros)
     if np.any(np.abs(radius - 1.0) < _CIRCLE_TOL):
         raise KfastError("C: has a zero on the unit circle: the noise model has no invertible (innovations) form")

@@ -10,8 +10,9 @@ from numpy.typing import ArrayLike
 
 from kfast._args import index
 from kfast._arrays import as_float64
+from kfast import _kfast
 from kfast._kfast import KfastError
-from kfast.poly._poly import monic, poly, trim
+from kfast.poly._poly import monic, poly, require_stable, trim
 
 __all__ = ["Diophantine", "diophantine", "predictor_identity", "two_sided", "causal_part"]
 
@@ -29,22 +30,10 @@ class Diophantine:
         return f"Diophantine(deg X={len(self.X) - 1}, deg Y={len(self.Y) - 1}, condition={self.condition:.3g})"
 
 
-def _convolution_matrix(p: np.ndarray, cols: int, rows: int) -> np.ndarray:
-    """The (rows, cols) matrix M with M @ x = coefficients of p(z) x(z) (x of degree cols - 1),
-    aligned at z^0 (descending powers: the last row is z^0)."""
-    M = np.zeros((rows, cols))
-    for j in range(cols):
-        # x_j multiplies z^(cols-1-j); p's z^i term lands at power i + cols - 1 - j.
-        for i, c in enumerate(p[::-1]):
-            power = i + cols - 1 - j
-            M[rows - 1 - power, j] = c
-    return M
-
-
 def diophantine(A: ArrayLike, B: ArrayLike, C: ArrayLike) -> Diophantine:
     """Solve A(z) X(z) + B(z) Y(z) = C(z) for the solution with deg X < deg B (unique when A and
     B are coprime), by the Sylvester system of the coefficients (Söderström (11.84)-(11.85),
-    (7.64)-(7.70)).
+    (7.64)-(7.70)), in Rust (kfast::poly::diophantine).
 
     Parameters
     ----------
@@ -70,21 +59,8 @@ def diophantine(A: ArrayLike, B: ArrayLike, C: ArrayLike) -> Diophantine:
     True
     """
     A_, B_, C_ = poly("A", A), poly("B", B), poly("C", C, allow_zero=True)
-    na, nb, nc = len(A_) - 1, len(B_) - 1, len(C_) - 1
-    top = max(nc, na + nb - 1, 0)
-    nx, ny = nb, top - nb + 1  # numbers of coefficients of X and Y
-    rows = top + 1
-    M = np.hstack([_convolution_matrix(A_, nx, rows), _convolution_matrix(B_, ny, rows)])
-    rhs = np.zeros(rows)
-    rhs[rows - len(C_):] = C_
-    cond = float(np.linalg.cond(M)) if M.size else 1.0
-    if not cond < 1e12:
-        raise KfastError(
-            f"A, B: have a common factor (the Sylvester matrix of the Diophantine equation is singular, "
-            f"condition number {cond:.3g}): the solution is not unique"
-        )
-    sol = np.linalg.solve(M, rhs)
-    return Diophantine(X=sol[:nx] if nx else np.zeros(1), Y=sol[nx:], condition=cond)
+    X, Y, cond = _kfast.diophantine(A_, B_, C_)
+    return Diophantine(X=np.asarray(X), Y=np.asarray(Y), condition=float(cond))
 
 
 def predictor_identity(A: ArrayLike, C: ArrayLike, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -97,14 +73,8 @@ def predictor_identity(A: ArrayLike, C: ArrayLike, k: int) -> tuple[np.ndarray, 
     steps = index("k", k)
     if steps < 1:
         raise KfastError(f"k: the prediction horizon must be at least 1, got {steps}")
-    n = len(A_) - 1
-    if len(C_) - 1 > n:
-        raise KfastError(f"C: degree {len(C_) - 1} exceeds deg A = {n}")
-    shifted = np.concatenate([np.pad(C_, (n + 1 - len(C_), 0)), np.zeros(steps - 1)])  # z^(k-1) C, degree n + k - 1
-    F, L = np.polydiv(shifted, A_)
-    L = trim(np.atleast_1d(L))
-    L = np.pad(L, (max(n - len(L), 0), 0))[-n:] if n else np.zeros(0)
-    return F, L
+    coefficients = _kfast.predictor_identity(A_, C_, steps)
+    return np.asarray(coefficients[0]), np.asarray(coefficients[1])
 
 
 def two_sided(lhs: np.ndarray, lhs_top: int, Bstar: np.ndarray, alpha: int, deg_R: int, A_: np.ndarray, beta: int, deg_L: int) -> tuple[np.ndarray, np.ndarray]:
@@ -170,9 +140,10 @@ def causal_part(G: ArrayLike, top: int, D: ArrayLike, P: ArrayLike) -> tuple[np.
     G_ = np.atleast_1d(as_float64("G", G)).ravel()
     if not np.all(np.isfinite(G_)) or G_.size == 0:
         raise KfastError("G: expected a non-empty array of finite Laurent coefficients")
-    for name, factor in (("D", D_), ("P", P_)):
-        if len(factor) > 1 and np.abs(np.roots(factor)).max() >= 1.0:
-            raise KfastError(f"{name}: must have its zeros strictly inside the unit circle")
+    require_stable("D", D_)
+    require_stable("P", P_)
+    if isinstance(top, (bool, np.bool_)) or not isinstance(top, (int, np.integer)):
+        raise KfastError(f"top: expected an integer power of z, got {top!r}")
     top_ = int(top)
     nu, mu = len(D_) - 1, len(P_) - 1
     ell, p = max(top_, 0), max(len(G_) - 1 - top_, 0)

@@ -15,7 +15,9 @@ from numpy.typing import ArrayLike
 
 from kfast._args import choice
 from kfast._kfast import KfastError, NoStabilizingSolutionError
+from kfast import _kfast
 from kfast._arrays import as_float64
+from kfast.poly._poly import roots
 
 __all__ = ["SpectralFactor", "spectral_factor", "evaluate_spectrum"]
 
@@ -89,20 +91,14 @@ def _check_nonnegative(name: str, r: np.ndarray) -> None:
 
 
 def _by_roots(name: str, r: np.ndarray) -> tuple[np.ndarray, float, bool]:
-    d = (r.size - 1) // 2
-    if d == 0:
-        return np.ones(1), float(r[0]), False
-    zeros = np.roots(r)
-    zeros = zeros[np.argsort(np.abs(zeros))]
-    inside = zeros[:d]
-    # The zeros come in pairs (z, 1/z̄): the d smallest in modulus are one of each pair, also
-    # for a double zero on the circle, which rounding splits to 1 ± O(√ε) (Lemma 4.6).
-    on_circle = bool(np.any(np.abs(np.abs(inside) - 1.0) < _CIRCLE_TOL)) or bool(np.abs(zeros[d]) < 1.0 - _CIRCLE_TOL)
-    B = np.real(np.poly(inside))
-    lam2 = float(r[d] / np.sum(B**2))
-    if not lam2 > 0:
-        raise KfastError(f"{name}: the spectrum is not positive (λ² = {lam2:.6g})")
-    return B, lam2, on_circle
+    """The zeros of z^d φ pair as (z, 1/z̄): the d smallest in modulus are one of each pair, also
+    for a double zero on the circle, which rounding splits to 1 ± O(√ε) (Lemma 4.6). In Rust
+    (kfast::poly::spectral_factor), which also checks φ >= 0 on the circle."""
+    try:
+        B, lam2, on_circle = _kfast.spectral_factor_roots(r)
+    except KfastError as exc:
+        raise KfastError(str(exc).replace("r: ", f"{name}: ", 1)) from None
+    return np.asarray(B), float(lam2), bool(on_circle)
 
 
 def _by_riccati(name: str, r: np.ndarray) -> tuple[np.ndarray, float, bool]:
@@ -131,14 +127,16 @@ def _by_riccati(name: str, r: np.ndarray) -> tuple[np.ndarray, float, bool]:
     B = np.real(np.poly(F - K @ H))
     # A double zero on the circle leaves the closed loop F - K H marginally stable: the DARE's
     # solution converges only like the distance to the circle (about 1e-8 here).
-    on_circle = bool(np.any(np.abs(np.roots(B)) > 1.0 - _CIRCLE_TOL)) if d else False
+    on_circle = bool(np.any(np.abs(roots(B)) > 1.0 - _CIRCLE_TOL)) if d else False
     return B, lam2, on_circle
 
 
 def _factor(name: str, value: ArrayLike, method: str) -> tuple[np.ndarray, float, bool]:
     r = _laurent(name, value)
+    if method == "roots":
+        return _by_roots(name, r)
     _check_nonnegative(name, r)
-    return (_by_roots if method == "roots" else _by_riccati)(name, r)
+    return _by_riccati(name, r)
 
 
 def spectral_factor(

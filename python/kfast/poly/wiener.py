@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from kfast._args import index
 from kfast._kfast import KfastError
 from kfast._numbers import positive_real
-from kfast.poly._poly import laurent, monic, polymul, polysub, reciprocal, trim
+from kfast.poly._poly import laurent, monic, polymul, polysub, reciprocal, require_stable, trim
 from kfast.poly.equations import two_sided
 from kfast.poly.spectral import spectral_factor
 
@@ -76,8 +76,7 @@ def _signal_and_noise(C, A, lam_v2, M, N, lam_e2):
     if len(M_) != len(N_):
         raise KfastError(f"M: must have the degree of N ({len(N_) - 1}), got {len(M_) - 1}")
     for name, p in (("C", C_), ("A", A_), ("M", M_), ("N", N_)):
-        if len(p) > 1 and np.abs(np.roots(p)).max() >= 1.0:
-            raise KfastError(f"{name}: must have its zeros strictly inside the unit circle")
+        require_stable(name, p)
     return C_, A_, positive_real("lam_v2", lam_v2), M_, N_, positive_real("lam_e2", lam_e2)
 
 
@@ -174,9 +173,8 @@ def _prefilter(prefilter: Optional[tuple]) -> tuple[np.ndarray, np.ndarray]:
     Fp, Hp = monic("prefilter", Fp), monic("prefilter", Hp)
     if len(Fp) != len(Hp):
         raise KfastError(f"prefilter: Fp and Hp must have equal degree, got {len(Fp) - 1} and {len(Hp) - 1}")
-    for p in (Fp, Hp):
-        if len(p) > 1 and np.abs(np.roots(p)).max() >= 1.0:
-            raise KfastError("prefilter: Fp and Hp must have their zeros strictly inside the unit circle")
+    require_stable("prefilter", Fp)
+    require_stable("prefilter", Hp)
     return Fp, Hp
 
 

@@ -13,7 +13,7 @@ __all__ = ["complex_kalman_filter", "augmented_kalman_filter", "complex_rts"]
 def complex_kalman_filter(F, H, Q, R, y, x0, P0):
     """Proper noise: K = P H^H S^-1, P(t|t) = P - K S K^H, P(t+1|t) = F P F^H + Q; missing
     components (NaN) are left out; loglik_t = -[m_t log π + log det S + e^H S^-1 e]."""
-    T, n = len(y), len(x0)
+    T = len(y)
     x, P = np.array(x0, complex), np.array(P0, complex)
     out = {k: [] for k in ("x_pred", "P_pred", "x_filt", "P_filt", "loglik_t")}
     for t in range(T):

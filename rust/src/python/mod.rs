@@ -7,6 +7,7 @@ mod diagnostics;
 mod model;
 mod multiple;
 mod nonlinear;
+mod poly;
 mod solvers;
 
 /// The extension's own Rust allocations (faer's matrices in the solvers, workspaces) use
@@ -400,6 +401,10 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(control::lqr, m)?)?;
     m.add_function(wrap_pyfunction!(control::lq_finite, m)?)?;
     m.add_function(wrap_pyfunction!(control::eigenvalues, m)?)?;
+    m.add_function(wrap_pyfunction!(poly::poly_roots, m)?)?;
+    m.add_function(wrap_pyfunction!(poly::spectral_factor_roots, m)?)?;
+    m.add_function(wrap_pyfunction!(poly::diophantine, m)?)?;
+    m.add_function(wrap_pyfunction!(poly::predictor_identity, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::discretize, m)?)?;
