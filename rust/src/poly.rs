@@ -86,10 +86,18 @@ pub struct SpectralFactor {
     pub on_circle: bool,
 }
 
-/// φ(e^{iω}) = r_0 + 2 Σ r_k cos kω of the symmetric Laurent coefficients `r` (highest first).
+/// φ(e^{iω}) = r_0 + 2 Σ r_k cos kω of the symmetric Laurent coefficients `r` (highest first);
+/// cos kω by the Chebyshev recurrence cos (k+1)ω = 2 cos ω cos kω − cos (k−1)ω (one cosine per ω).
 fn evaluate(r: &[f64], omega: f64) -> f64 {
     let d = (r.len() - 1) / 2;
-    r[d] + 2.0 * (1..=d).map(|k| r[d + k] * (k as f64 * omega).cos()).sum::<f64>()
+    let c1 = omega.cos();
+    let (mut prev, mut cur) = (1.0, c1);
+    let mut sum = 0.0;
+    for k in 1..=d {
+        sum += r[d + k] * cur;
+        (prev, cur) = (cur, 2.0 * c1 * cur - prev);
+    }
+    r[d] + 2.0 * sum
 }
 
 /// The spectral factor of φ(z) = r_0 + Σ r_k (z^k + z^−k), given as the symmetric `r` =
