@@ -38,6 +38,7 @@ MODULES = [
     "kfast.poly.equations",
     "kfast.poly.arma",
     "kfast.poly.wiener",
+    "kfast.poly.varmax",
 ]
 
 FLAGS = doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS

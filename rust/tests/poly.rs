@@ -1,12 +1,13 @@
 //! Integration tests of the polynomial toolbox (`kfast::poly`): the spectral factor of
 //! Mortensen's FIR spectrum (1 − 0.6 z⁻¹ + 0.25 z⁻², λ² = 1) and of a double zero on the unit
 //! circle (Lemma 4.6); Söderström Example 7.1's predictor identity; the Diophantine identity on
-//! seeded random polynomials (checked by multiplying out here); bad input.
+//! seeded random polynomials (checked by multiplying out here); Levinson's Toeplitz solve on
+//! autocovariances (checked by the residual, order by order); bad input.
 
 mod common;
 
 use common::Rng;
-use kfast::poly::{diophantine, from_roots, predictor_identity, roots, spectral_factor};
+use kfast::poly::{diophantine, from_roots, levinson, predictor_identity, roots, spectral_factor};
 
 fn mul(a: &[f64], b: &[f64]) -> Vec<f64> {
     let mut out = vec![0.0; a.len() + b.len() - 1];
@@ -71,6 +72,32 @@ fn diophantine_identity_on_random_polynomials() {
 }
 
 #[test]
+fn levinson_solves_every_order() {
+    let mut rng = Rng::new(11);
+    // Autocovariance of an ARMA(2, 1) process, computed from its impulse response.
+    let mut h = vec![1.0, 0.0];
+    h[1] = 1.2 - 0.4;
+    for j in 2..400 {
+        let v = 1.2 * h[j - 1] - 0.5 * h[j - 2];
+        h.push(v);
+    }
+    let r: Vec<f64> = (0..30).map(|k| h.iter().zip(&h[k..]).map(|(a, b)| a * b).sum()).collect();
+    let b: Vec<f64> = (0..30).map(|_| rng.normal()).collect();
+    let sol = levinson(&r, &b).unwrap();
+    for order in 0..30 {
+        // The solution of order k, by solving again with b truncated: T_k x_k = b[..=k].
+        let xk = levinson(&r, &b[..=order]).unwrap().x;
+        for (i, bi) in b[..=order].iter().enumerate() {
+            let row: f64 = xk.iter().enumerate().map(|(j, xj)| r[i.abs_diff(j)] * xj).sum();
+            assert!((row - bi).abs() < 1e-9 * (1.0 + bi.abs()), "order {order}, row {i}");
+        }
+        let q: f64 = xk.iter().zip(&b).map(|(x, b)| x * b).sum();
+        assert!((q - sol.quadratic[order]).abs() < 1e-10 * q.abs().max(1.0), "quadratic at {order}");
+    }
+    assert_eq!(sol.x, levinson(&r, &b).unwrap().x);
+}
+
+#[test]
 fn bad_input() {
     let msg = |e: kfast::Error| e.to_string();
     assert!(msg(spectral_factor(&[1.0, 0.0, 1.0]).unwrap_err())
@@ -82,4 +109,7 @@ fn bad_input() {
     assert!(msg(predictor_identity(&[2.0, 1.0], &[1.0, 0.0], 1).unwrap_err()).starts_with("A: must be monic"));
     assert!(msg(predictor_identity(&[1.0, 1.0], &[1.0, 0.0], 0).unwrap_err()).starts_with("k: "));
     assert!(msg(roots(&[f64::NAN, 1.0]).unwrap_err()).starts_with("p: contains a non-finite"));
+    let singular = levinson(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0]).unwrap_err();
+    assert_eq!(msg(singular), "r: the Toeplitz matrix is not positive definite at order 1");
+    assert!(msg(levinson(&[1.0], &[1.0, 2.0]).unwrap_err()).starts_with("r: has 1 lags"));
 }

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import kfast
-from kfast.linear.complex import ComplexLinearGaussian
+from kfast.linear.complex import ComplexLinearGaussian, complex_covariance
 from kfast.reference.complex import augmented_kalman_filter, complex_kalman_filter, complex_rts
 
 
@@ -58,6 +58,14 @@ def test_proper_noise_is_the_complex_kalman_filter(seed):
         np.testing.assert_allclose(getattr(res, name), ref[name], rtol=1e-9, atol=1e-10, err_msg=name)
     assert res.loglik == pytest.approx(ref["loglik"], rel=1e-10)
     np.testing.assert_allclose(res.P_filt_c, 0.0, atol=1e-12)
+    # Proper results are converted from half the composite covariance (2 (C_RR + i C_IR)): the
+    # composite run keeps the proper structure to rounding, so the full conversion agrees.
+    n = F.shape[0]
+    for name in ("P_pred", "P_filt", "P_next"):
+        C = getattr(res.real, name)
+        full = complex_covariance(C, n)
+        np.testing.assert_allclose(getattr(res, name), full, rtol=1e-12, atol=1e-13 * np.abs(full).max(), err_msg=name)
+        np.testing.assert_allclose(complex_covariance(C, n, complementary=True), 0.0, atol=1e-13 * np.abs(full).max())
     assert model.loglik(y, x0, P0) == res.loglik
     sm = model.smooth(y, x0, P0)
     ref_s = complex_rts(F, H, Q, R, np.where(np.isnan(y), np.nan, y), x0, P0)

@@ -88,12 +88,40 @@ def test_fir_approaches_causal_from_above_and_noncausal_is_the_bound(seed, m):
     causal = kfast.poly.wiener_causal(**spec, m=m)
     bound = kfast.poly.wiener_noncausal(**spec, m=m)
     errors = [kfast.poly.wiener_fir(**spec, order=p, m=m).error_variance for p in (1, 4, 16, 64)]
+    by_order = kfast.poly.wiener_fir(**spec, order=64, m=m).error_variance_by_order
+    np.testing.assert_allclose(by_order[[1, 4, 16, 64]], errors, rtol=1e-12)
+    assert np.all(np.diff(by_order) <= 1e-12)
     assert all(a >= b - 1e-12 for a, b in zip(errors, errors[1:]))
     assert errors[-1] >= causal.error_variance - 1e-10
     assert errors[-1] == pytest.approx(causal.error_variance, rel=1e-6)
     assert bound.error_variance <= causal.error_variance + 1e-12
     # The smoother's error reaches the bound as the lag grows (7.93).
     assert kfast.poly.wiener_causal(**spec, m=60).error_variance == pytest.approx(bound.error_variance, rel=1e-6)
+
+
+@pytest.mark.parametrize("order", [0, 3, 40])
+def test_fir_levinson_solves_the_normal_equations(order):
+    """Levinson's recursion against a dense solve of the same Toeplitz normal equations, every
+    order: the coefficients and the error variance of each."""
+    from kfast.poly.arma import arma_to_ss
+
+    spec, _ = problem(2)
+    g = kfast.poly.wiener_fir(**spec, order=order, m=1)
+    lags = np.arange(order + 2)
+
+    def autocovariance(top, bottom, lam):
+        if len(bottom) == 1:
+            return np.where(lags == 0, lam, 0.0)
+        return arma_to_ss(bottom, top, lam).autocovariance(lags)[:, 0, 0]
+
+    r_s = autocovariance(spec["C"], spec["A"], spec["lam_v2"])
+    r_y = r_s + autocovariance(spec["M"], spec["N"], spec["lam_e2"])
+    for k in range(order + 1):
+        T = r_y[np.abs(np.subtract.outer(np.arange(k + 1), np.arange(k + 1)))]
+        b = r_s[np.abs(np.arange(k + 1) - 1)]
+        dense = np.linalg.solve(T, b)
+        assert g.error_variance_by_order[k] == pytest.approx(r_s[0] - dense @ b, rel=1e-10)
+    np.testing.assert_allclose(g.num, dense, rtol=1e-9, atol=1e-12)
 
 
 def test_noncausal_filter_is_the_spectral_ratio():

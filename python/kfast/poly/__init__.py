@@ -9,6 +9,8 @@ an ARMA(X) model is A(q) y = B(q) u + C(q) e, var e = λ².
   Diophantine equation (7.64)-(7.70).
 - :func:`arma_predictor` — the k-step predictor q L / C (7.18), with C's zeros reflected into
   the unit circle first (:func:`invertible`, Example 7.1).
+- :func:`varmax_predictor` — the general multivariable k-step predictor (7.24)-(7.31) of
+  A(q) y = B(q) u + C(q) e with matrix polynomials.
 - :func:`wiener_causal`, :func:`wiener_noncausal`, :func:`wiener_fir` — Wiener filters of a
   signal C/A v in coloured noise M/N e, lag m (7.47), (7.76)-(7.93).
 - :func:`arma_to_ss`, :func:`ss_to_arma` — ARMA(X) <-> innovations state space, so each
@@ -20,6 +22,7 @@ an ARMA(X) model is A(q) y = B(q) u + C(q) e, var e = λ².
 from kfast.poly._poly import laurent, polyadd, polymul, polysub, reciprocal
 from kfast.poly.arma import ArmaPredictor, arma_predictor, arma_to_ss, invertible, ss_to_arma
 from kfast.poly.equations import Diophantine, causal_part, diophantine, predictor_identity
+from kfast.poly.varmax import VarmaxPredictor, varmax_predictor
 from kfast.poly.spectral import SpectralFactor, evaluate_spectrum, spectral_factor
 from kfast.poly.wiener import WienerFilter, wiener_causal, wiener_fir, wiener_noncausal
 
@@ -41,6 +44,8 @@ __all__ = [
     "SpectralFactor",
     "Diophantine",
     "ArmaPredictor",
+    "varmax_predictor",
+    "VarmaxPredictor",
     "wiener_causal",
     "wiener_noncausal",
     "wiener_fir",

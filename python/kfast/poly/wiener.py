@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast._args import index
+from kfast import _kfast
 from kfast._kfast import KfastError
 from kfast._numbers import positive_real
 from kfast.poly._poly import laurent, monic, polymul, polysub, reciprocal, require_stable, trim
@@ -41,6 +42,9 @@ class WienerFilter:
     den_top: int
     model: tuple
     """(C, A, lam_v2, M, N, lam_e2) of the signal and noise."""
+    error_variance_by_order: Optional[np.ndarray] = None
+    """FIR filters only: entry k is the error variance of the FIR filter of order k
+    (k = 0..order), from the same Levinson recursion; non-increasing in k."""
 
     def frequency_response(self, omega: ArrayLike) -> np.ndarray:
         """G(e^{iω}) at the frequencies ``omega`` (rad/sample)."""
@@ -225,7 +229,11 @@ def wiener_fir(
 ) -> WienerFilter:
     """The FIR Wiener filter ŝ(t - m) = Σ_{j=0}^{order} g_j y(t - j): the normal equations
     Σ_j r_y(i - j) g_j = r_s(i - m), i = 0..order (orthogonality), error variance
-    r_s(0) - g' r_s(· - m). Covariances from the state-space models of s and w (Lyapunov)."""
+    r_s(0) - g' r_s(· - m). Covariances from the state-space models of s and w (Lyapunov).
+
+    The Toeplitz normal equations are solved by Levinson's recursion in O(order²), which
+    passes through every smaller order: ``error_variance_by_order[k]`` is the error variance
+    of the order-k filter (it decreases towards the causal Wiener filter's as k grows)."""
     from kfast.poly.arma import arma_to_ss
 
     C_, A_, lv, M_, N_, le = _signal_and_noise(C, A, lam_v2, M, N, lam_e2)
@@ -242,8 +250,10 @@ def wiener_fir(
 
     r_s, r_w = cov(C_, A_, lv), cov(M_, N_, le)
     r_y = r_s + r_w
-    T = r_y[np.abs(np.subtract.outer(np.arange(p + 1), np.arange(p + 1)))]
     r_sy = np.array([r_s[abs(i - lag)] for i in range(p + 1)])
-    g = np.linalg.solve(T, r_sy)
+    # r_y is positive definite (its one-step prediction error is at least λv² > 0).
+    g, explained = _kfast.levinson(r_y[: p + 1], r_sy)
+    by_order = r_s[0] - np.asarray(explained)
     model = (C_, A_, lv, M_, N_, le)
-    return WienerFilter(num=g, den=np.ones(1), error_variance=float(r_s[0] - g @ r_sy), lag=lag, num_top=0, den_top=0, model=model)
+    return WienerFilter(num=np.asarray(g), den=np.ones(1), error_variance=float(by_order[-1]), lag=lag, num_top=0,
+                        den_top=0, model=model, error_variance_by_order=by_order)

@@ -405,6 +405,7 @@ fn _kfast(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(poly::spectral_factor_roots, m)?)?;
     m.add_function(wrap_pyfunction!(poly::diophantine, m)?)?;
     m.add_function(wrap_pyfunction!(poly::predictor_identity, m)?)?;
+    m.add_function(wrap_pyfunction!(poly::levinson, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::care, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::expm, m)?)?;
     m.add_function(wrap_pyfunction!(solvers::discretize, m)?)?;

@@ -1,5 +1,5 @@
 //! The polynomial toolbox's numerics (`kfast.poly`): zeros, spectral factor, Diophantine
-//! equation, predictor identity.
+//! equation, predictor identity, Levinson's Toeplitz solve.
 
 use numpy::PyReadonlyArrayDyn;
 use pyo3::prelude::*;
@@ -52,4 +52,12 @@ pub(super) fn predictor_identity(
 ) -> PyResult<(Vec<f64>, Vec<f64>)> {
     let (a, c) = (data("A", &A, 1)?, data("C", &C, 1)?);
     Ok(py.detach(|| crate::poly::predictor_identity(a, c, k))?)
+}
+
+/// (x, quadratic) of the symmetric Toeplitz system T(r) x = b by Levinson's recursion.
+#[pyfunction]
+pub(super) fn levinson(py: Python<'_>, r: Array<'_>, b: Array<'_>) -> PyResult<(Vec<f64>, Vec<f64>)> {
+    let (rv, bv) = (data("r", &r, 1)?, data("b", &b, 1)?);
+    let sol = py.detach(|| crate::poly::levinson(rv, bv))?;
+    Ok((sol.x, sol.quadratic))
 }

@@ -862,8 +862,7 @@ pub(crate) fn eigenvalues_of(a: &[f64], n: usize) -> Result<Vec<(f64, f64)>> {
 }
 
 fn eigenvalues(a: &Mat<f64>) -> Result<Vec<(f64, f64)>> {
-    let ev = a.eigenvalues().map_err(|_| no_solution("closed-loop eigenvalues did not converge"))?;
-    Ok(ev.iter().map(|l| (l.re, l.im)).collect())
+    crate::core::schur::eigenvalues(a).map_err(|_| no_solution("closed-loop eigenvalues did not converge"))
 }
 
 /// The largest modulus of `eigenvalues` (NaN if one is NaN).
