@@ -64,6 +64,8 @@ from kfast.riccati.solvers import (
 
 from kfast import models  # noqa: E402  (the model catalogue: kfast.models.constant_velocity, ...)
 from kfast import sigma  # noqa: E402  (sigma-point sets: kfast.sigma.merwe, julier, cubature)
+from kfast import plot  # noqa: E402  (matplotlib is imported on the first plot)
+from kfast import dask  # noqa: E402  (series over Dask collections; dask is imported on the first call)
 from kfast import control  # noqa: E402  (LQ, LQG and dynamic programming: kfast.control.lqr, ...)
 from kfast import poly  # noqa: E402  (polynomial methods: kfast.poly.spectral_factor, diophantine, ...)
 

@@ -43,5 +43,7 @@ def deterministic() -> bool:
 
 def kernel_info() -> dict[str, object]:
     """How the loops run on this machine: ``instruction_set`` (``"avx2+fma"``, ``"avx2"`` or
-    ``"baseline"``), ``deterministic``, ``cpu_features`` and the compiled ``fixed_sizes``."""
+    ``"baseline"``), ``deterministic``, ``cpu_features``, the compiled ``fixed_sizes``, the
+    extension's ``build`` profile (``"release"`` or ``"debug"``) and ``target``, and
+    ``threads``: the cores the batch functions use by default (``threads=None``)."""
     return dict(_kfast.kernel_info())

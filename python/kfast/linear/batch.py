@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike
 from kfast import _kfast
 from kfast._args import flag, index
 from kfast._arrays import as_float64
+from kfast._progress import Progress
 from kfast.linear.model import LinearGaussian, _update_form
 from kfast._typing import UpdateForm
 
@@ -46,6 +47,7 @@ def filter_batch(
     return_covs: bool = True,
     threads: Optional[int] = None,
     form: UpdateForm = "joseph",
+    progress: bool = False,
 ) -> BatchResult:
     """Kalman-filter many independent series through one model, in parallel.
 
@@ -68,6 +70,9 @@ def filter_batch(
     form : {"joseph", "standard", "sqrt", "ud", "information", "sequential"}
         The update form, as in :meth:`LinearGaussian.filter` (the robust forms filter each
         series alone: no shared covariance recursion).
+    progress : bool
+        Report progress on stderr (a tqdm bar when tqdm is installed): the series then go to
+        the core in 20 chunks, one report each; the results are the same bits.
 
     Returns
     -------
@@ -103,11 +108,35 @@ def filter_batch(
         raise _kfast.KfastError(f"model: expected a kfast.LinearGaussian, got {type(model).__name__}")
     Y, x0, P0, u, threads = batch_arguments(model.n_states, model.n_obs, Y, x0, P0, u, threads)
     return_covs = flag("return_covs", return_covs)
-    out = _kfast.filter_batch(model._core, Y, x0, P0, u=u, return_covs=return_covs, threads=threads, form=_update_form(form))
-    P = out.get("P_filt")
-    if P is not None and out["shared"]:
-        P = np.broadcast_to(P, (Y.shape[0],) + P.shape)
-    return BatchResult(x_filt=out["x_filt"], P_filt=P, loglik=out["loglik"], shared_covariance=bool(out["shared"]))
+    B = Y.shape[0]
+
+    def run(a: int, b: int) -> dict:
+        def part(v: np.ndarray, per_series_ndim: int) -> np.ndarray:
+            return v[a:b] if v.ndim == per_series_ndim else v
+
+        return _kfast.filter_batch(model._core, Y[a:b], part(x0, 2), part(P0, 3), u=None if u is None else part(u, 3),
+                                   return_covs=return_covs, threads=threads, form=_update_form(form))
+
+    if not flag("progress", progress) or B < 2:
+        out = run(0, B)
+        P = out.get("P_filt")
+        if P is not None and out["shared"]:
+            P = np.broadcast_to(P, (B,) + P.shape)
+        return BatchResult(x_filt=out["x_filt"], P_filt=P, loglik=out["loglik"], shared_covariance=bool(out["shared"]))
+    edges = np.linspace(0, B, min(20, B) + 1).astype(int)
+    parts = []
+    with Progress(True, B, "filter_batch") as bar:
+        for a, b in zip(edges[:-1], edges[1:]):
+            parts.append(run(int(a), int(b)))
+            bar.update(int(b - a))
+    shared = all(p["shared"] for p in parts)
+    P = None
+    if return_covs:
+        P = (np.broadcast_to(parts[0]["P_filt"], (B,) + parts[0]["P_filt"].shape) if shared else np.concatenate(
+            [np.broadcast_to(p["P_filt"], (len(p["x_filt"]),) + p["P_filt"].shape) if p["shared"] else p["P_filt"]
+             for p in parts]))
+    return BatchResult(x_filt=np.concatenate([p["x_filt"] for p in parts]), P_filt=P,
+                       loglik=np.concatenate([p["loglik"] for p in parts]), shared_covariance=shared)
 
 
 def batch_arguments(

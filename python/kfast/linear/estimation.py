@@ -6,7 +6,6 @@ EM's closed-form M-step run in Python/NumPy, vectorized over time.
 
 from __future__ import annotations
 
-import sys
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Optional, Sequence
@@ -15,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kfast._args import flag, tolerance
+from kfast._progress import Progress
 from kfast._arrays import as_float64, finite_vector
 from kfast._kfast import KfastError
 from kfast.linear.model import LinearGaussian
@@ -76,6 +76,7 @@ def fit(
     options: Optional[dict] = None,
     P0_inf: Optional[ArrayLike] = None,
     gradient: str = "numerical",
+    progress: bool = False,
 ) -> FitResult:
     """Maximum-likelihood estimates of the parameters theta of a model.
 
@@ -106,6 +107,9 @@ def fit(
         log-likelihood, the default) or "analytic", the exact score of :func:`kfast.loglik_score`
         (the filter's tangent recursion), which also gives the Hessian for the standard errors
         as central differences of the score. "analytic" needs an ordinary prior (no P0_inf).
+    progress : bool
+        Report each optimizer iteration and the best log-likelihood so far on stderr (a tqdm
+        bar when tqdm is installed).
 
     Returns
     -------
@@ -162,14 +166,29 @@ def fit(
         except KfastError:
             return -np.inf
 
+    best = [ll0]
+
     def objective(theta):
         ll = loglik(theta)
+        best[0] = max(best[0], ll) if np.isfinite(ll) else best[0]
         return -ll if np.isfinite(ll) else np.inf
 
-    if gradient == "analytic":
-        opt = minimize(_negative_score(build, y, u), theta0, jac=True, method=method, bounds=bounds, options=options)
-    else:
-        opt = minimize(objective, theta0, method=method, bounds=bounds, options=options)
+    with Progress(flag("progress", progress), None, "fit") as bar:
+        # One report per optimizer iteration, with the best log-likelihood seen so far.
+        def report(*_: Any) -> None:
+            bar.update(1, loglik=best[0])
+
+        if gradient == "analytic":
+            score = _negative_score(build, y, u)
+
+            def traced(theta):
+                value, grad = score(theta)
+                best[0] = max(best[0], -value) if np.isfinite(value) else best[0]
+                return value, grad
+
+            opt = minimize(traced, theta0, jac=True, method=method, bounds=bounds, options=options, callback=report)
+        else:
+            opt = minimize(objective, theta0, method=method, bounds=bounds, options=options, callback=report)
     theta = np.asarray(opt.x, dtype=float)
     if not np.all(np.isfinite(theta)):
         raise KfastError(
@@ -445,19 +464,17 @@ def em(
     history = [sm.filter.loglik]  # log-likelihood of the parameters entering each iteration
     converged = False
     iterations = 0
-    while iterations < n_iter:
-        F, H, Q, R, x0, P0 = _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit)
-        iterations += 1
-        sm = e_step(F, H, Q, R, x0, P0)
-        history.append(sm.filter.loglik)
-        if progress:
-            print(f"\rEM {iterations}/{n_iter}  loglik {history[-1]:.6f}", end="", file=sys.stderr, flush=True)
-        if tol is not None and abs(history[-1] - history[-2]) <= tol * max(1.0, abs(history[-1])):
-            converged = True
-            break
+    with Progress(progress, n_iter, "EM") as bar:
+        while iterations < n_iter:
+            F, H, Q, R, x0, P0 = _m_step(sm, y, a, d, F, H, Q, R, x0, P0, fit)
+            iterations += 1
+            sm = e_step(F, H, Q, R, x0, P0)
+            history.append(sm.filter.loglik)
+            bar.update(1, loglik=history[-1])
+            if tol is not None and abs(history[-1] - history[-2]) <= tol * max(1.0, abs(history[-1])):
+                converged = True
+                break
     final = LinearGaussian(F, H, Q, R, B=B, D=D)
-    if progress:
-        print(file=sys.stderr)
     result = EMResult(
         model=final,
         x0=np.asarray(x0),

@@ -1230,7 +1230,8 @@ class LinearGaussian:
         tol : float, optional
             Stop early when the relative change of the log-likelihood is below tol.
         progress : bool
-            Print the iterations to stderr.
+            Report each iteration and its log-likelihood on stderr (a tqdm bar when tqdm is
+            installed).
 
         Returns
         -------

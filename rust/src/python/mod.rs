@@ -287,6 +287,9 @@ fn kernel_info(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     info.set_item("deterministic", crate::deterministic())?;
     info.set_item("cpu_features", crate::core::isa::cpu_features())?;
     info.set_item("fixed_sizes", crate::core::dims::FIXED_SIZES)?;
+    info.set_item("build", if cfg!(debug_assertions) { "debug" } else { "release" })?;
+    info.set_item("target", format!("{}-{}", std::env::consts::ARCH, std::env::consts::OS))?;
+    info.set_item("threads", std::thread::available_parallelism().map_or(1, |c| c.get()))?;
     Ok(info)
 }
 
