@@ -24,8 +24,22 @@ def site(tmp_path_factory):
 
 
 def test_pages_are_built(site):
-    for page in ("index.html", "getting-started/index.html", "guide/linear/index.html", "reference/api/index.html"):
+    for page in ("index.html", "getting-started/index.html", "guide/linear/index.html", "guide/steady-state/index.html",
+                 "guide/estimation/index.html", "guide/nonlinear/index.html", "guide/control/index.html",
+                 "migration/index.html", "conventions/index.html", "reference/api/index.html"):
         assert (site / page).is_file(), page
+
+
+def test_guides_show_their_checks(site):
+    def text(page):
+        return (site / "guide" / page / "index.html").read_text()
+
+    assert "the same from the DARE: True" in text("steady-state")
+    assert "K_pred = F K (N = 0): True" in (site / "conventions" / "index.html").read_text()
+    assert "error variance 10.76" in text("control")  # Söderström Example 7.1
+    nonlinear = text("nonlinear")
+    assert all(f"{name}" in nonlinear for name in ("UKF ", "EKF ", "particle filter ")) and "position RMSE 0." in nonlinear
+    assert "after" in text("estimation") and "EM:" in text("estimation")
 
 
 def test_examples_ran_and_the_plot_is_there(site):
@@ -48,3 +62,55 @@ def test_api_reference_comes_from_the_docstrings(site):
     html = (site / "reference" / "api" / "index.html").read_text()
     for name in ("LinearGaussian", "smooth_fixed_lag", "filter_batch", "KalmanFilter", "plot_track"):
         assert name in html, name
+
+
+def test_migration_guide_shows_the_peers_agree(site):
+    """Every difference the migration page printed (filterpy, pykalman, statsmodels against
+    kfast on the same data) is at rounding level."""
+    import re
+
+    html = (site / "migration" / "index.html").read_text()
+    found = re.findall(r"(x_filt|P_filt|loglik|x_smooth|K_pred|vs batch): ([0-9.e+-]+)", html)
+    names = [name for name, _ in found]
+    assert names.count("x_filt") == 3 and "K_pred" in names and "x_smooth" in names, found
+    assert all(float(value) < 1e-9 for _, value in found), found
+
+
+def chromium():
+    import shutil
+
+    return shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+
+
+@pytest.mark.skipif(chromium() is None, reason="no headless Chromium (.ci/run installs Debian's chromium)")
+def test_pages_render_in_a_headless_browser(site, tmp_path):
+    """Each page opened in headless Chromium: the DOM after its scripts ran has the page's
+    title and content (no traceback in the examples' output), the getting-started page draws its plot, and a
+    screenshot is a real image."""
+    import struct
+
+    pages = {
+        "getting-started/index.html": ("Getting started", "position RMSE"),
+        "guide/linear/index.html": ("Linear filtering and smoothing", "P_filt"),
+        "guide/nonlinear/index.html": ("Nonlinear filters", "particle filter"),
+        "migration/index.html": ("Coming from filterpy", "statsmodels"),
+        "reference/api/index.html": ("API reference", "smooth_fixed_lag"),
+    }
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1200,1800"]
+    for page, (title, text) in pages.items():
+        url = (site / page).as_uri()
+        dom = subprocess.run([chromium(), *flags, "--virtual-time-budget=1000", "--dump-dom", url],
+                             capture_output=True, text=True, timeout=120).stdout
+        assert f"<title>{title}" in dom and text in dom, page
+        if not page.startswith("reference"):  # (the API docstrings show expected errors)
+            assert "Traceback" not in dom, page
+    dom = subprocess.run([chromium(), *flags, "--dump-dom", (site / "getting-started/index.html").as_uri()],
+                         capture_output=True, text=True, timeout=120).stdout
+    # The track figure: matplotlib's SVG with its ellipse patches and lines, inline in the page.
+    figure = dom[dom.index("<svg", dom.index("Plot the result")):]
+    assert figure.count("patch_") >= 20 and "line2d_" in figure
+    shot = tmp_path / "shot.png"
+    subprocess.run([chromium(), *flags, f"--screenshot={shot}", (site / "getting-started/index.html").as_uri()],
+                   capture_output=True, timeout=120)
+    head = shot.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", head[16:24]) == (1200, 1800)
