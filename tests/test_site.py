@@ -26,7 +26,8 @@ def site(tmp_path_factory):
 def test_pages_are_built(site):
     for page in ("index.html", "getting-started/index.html", "guide/linear/index.html", "guide/steady-state/index.html",
                  "guide/estimation/index.html", "guide/nonlinear/index.html", "guide/control/index.html",
-                 "migration/index.html", "conventions/index.html", "reference/api/index.html"):
+                 "migration/index.html", "conventions/index.html", "guide/continuous/index.html",
+                 "guide/particles/index.html", "benchmarks/index.html", "reference/api/index.html"):
         assert (site / page).is_file(), page
 
 
@@ -36,6 +37,11 @@ def test_guides_show_their_checks(site):
 
     assert "the same from the DARE: True" in text("steady-state")
     assert "K_pred = F K (N = 0): True" in (site / "conventions" / "index.html").read_text()
+    continuous = text("continuous")
+    assert "Qd = [[0.041667, 0.125], [0.125, 0.5]]" in continuous  # h^3/3, h^2/2, h at h = 0.5
+    assert "Kalman-Bucy P and K: [0.414214] [0.414214]" in continuous  # sqrt(2) - 1
+    particles = text("particles")
+    assert "ParticleResult(T=100" in particles and "IMMResult(T=200, r=2" in particles and "<svg" in particles
     assert "error variance 10.76" in text("control")  # Söderström Example 7.1
     nonlinear = text("nonlinear")
     assert all(f"{name}" in nonlinear for name in ("UKF ", "EKF ", "particle filter ")) and "position RMSE 0." in nonlinear
