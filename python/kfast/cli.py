@@ -55,7 +55,10 @@ def write_demo_plot(path: str, model: kfast.LinearGaussian, truth: np.ndarray, y
     """The demo's figure: the first 100 steps of the 2-D track (smoothed, with 95% ellipses;
     truth; measurements) and the smoothed velocity components with their bands over all steps.
     Returns the figure."""
-    import matplotlib
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise SystemExit('--plot needs matplotlib: pip install "kfast[plot]"') from exc
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
