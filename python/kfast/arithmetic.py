@@ -1,12 +1,13 @@
 """Fused multiply-adds or the same bits on every CPU (docs/conventions.md, "Arithmetic").
 
-kfast's filter and smoother loops run with the widest instruction set the CPU has. By
-default, on x86-64 CPUs with AVX2 and FMA, their multiply-adds are *fused*: ``c + a * b``
-rounds once instead of twice, which is faster and as accurate, but the last bits then depend
-on the CPU. In *deterministic* mode the loops never fuse, and every CPU (with or without
-AVX2, x86-64 or ARM) computes the same bits. Either way every path (``filter``,
-``filter_batch``, ``KalmanFilter``, the smoothers) computes the same recursion the same way,
-so they agree with each other to the bit.
+kfast's filter and smoother loops *fuse* their multiply-adds: ``c + a * b`` rounds once
+(IEEE ``fma``), on x86-64 CPUs with AVX2 and FMA and on every other target (aarch64), so the
+same operations give the same bits on each of them. Products of run-time sizes above 12 go to
+faer by default, whose kernels (and so last bits) depend on the CPU; *deterministic* mode
+keeps them in kfast's loops, and then every CPU computes the same bits (an x86-64 CPU without
+FMA fuses in software then: slow). Either way every path (``filter``, ``filter_batch``,
+``KalmanFilter``, the smoothers) computes the same recursion the same way, so they agree with
+each other to the bit.
 
 Deterministic mode is off by default; ``KFAST_DETERMINISTIC=1`` in the environment turns it
 on for the process (read at the first filter call), :func:`set_deterministic` at any time.
@@ -28,8 +29,9 @@ from kfast._args import flag
 def set_deterministic(on: bool) -> bool:
     """Turn deterministic mode on or off for the whole process; returns the previous setting.
 
-    Calls already running keep the arithmetic they started with; a ``KalmanFilter`` or
-    ``FixedLagSmoother`` keeps the arithmetic it was created with. The matrix equation
+    It changes results only with more than 12 states, by rounding. Calls already running keep
+    their loops (one with more than 12 states may compute some products each way); a
+    ``KalmanFilter`` or ``FixedLagSmoother`` keeps the loops it was created with. The matrix equation
     solvers (``solve_discrete_are`` and the like) are not affected: their large products run
     in faer, which picks its own kernels per CPU.
     """
@@ -42,8 +44,8 @@ def deterministic() -> bool:
 
 
 def kernel_info() -> dict[str, object]:
-    """How the loops run on this machine: ``instruction_set`` (``"avx2+fma"``, ``"avx2"`` or
-    ``"baseline"``), ``deterministic``, ``cpu_features``, the compiled ``fixed_sizes``, the
+    """How the loops run on this machine: ``instruction_set`` (``"avx2+fma"``,
+    ``"baseline+fma"``, or on an x86-64 CPU without FMA ``"avx2"`` or ``"baseline"``), ``deterministic``, ``cpu_features``, the compiled ``fixed_sizes``, the
     extension's ``build`` profile (``"release"`` or ``"debug"``) and ``target``, and
     ``threads``: the cores the batch functions use by default (``threads=None``)."""
     return dict(_kfast.kernel_info())

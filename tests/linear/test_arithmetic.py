@@ -1,9 +1,11 @@
 """Fused multiply-adds and deterministic mode (docs/conventions.md, "Arithmetic").
 
-Deterministic mode must give the same bits with every instruction set (here: the baseline
-loops against the AVX2 ones, forced with the private ``_force_kernel``); the default (fused
-where the CPU has FMA) must agree with it to rounding; and in either mode the filter, the
-batch filter, the streaming filter and the smoothers must agree with each other to the bit.
+The fused loops must give the same bits with every instruction set (here: the AVX2 + FMA
+loops of compile-time sizes against the baseline loops of run-time sizes with software FMA,
+forced with the private ``_force_kernel``), deterministic mode must change nothing at n <= 12
+and only rounding above (faer's products), the unfused loops of CPUs without FMA must agree
+with the fused ones to rounding, and in either mode the filter, the batch filter, the
+streaming filter and the smoothers must agree with each other to the bit.
 """
 
 import os
@@ -53,25 +55,32 @@ def everything(n, m, seed=1):
     }
 
 
+@pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
+@pytest.mark.parametrize("n, m", SIZES)
+def test_fused_loops_give_the_same_bits_with_every_instruction_set(kernel, n, m):
+    kfast.set_deterministic(True)
+    assert kfast.kernel_info()["instruction_set"] == "avx2+fma"
+    default = everything(n, m)
+    kernel("baseline+fma")  # run-time sizes, fma() of the C library
+    software = everything(n, m)
+    for name in default:
+        np.testing.assert_array_equal(software[name], default[name], err_msg=name)
+
+
 @pytest.mark.skipif(not HAS_AVX2, reason="needs a CPU with AVX2 to compare with the baseline loops")
 @pytest.mark.parametrize("n, m", SIZES)
-def test_deterministic_mode_gives_the_same_bits_with_every_instruction_set(kernel, n, m):
-    kfast.set_deterministic(True)
+def test_unfused_loops_give_the_same_bits_with_every_instruction_set(kernel, n, m):
     kernel("baseline")
     base = everything(n, m)
     kernel("avx2")
     avx2 = everything(n, m)
-    kernel(None)
-    assert kfast.kernel_info()["instruction_set"] == "avx2"
-    default = everything(n, m)
     for name in base:
         np.testing.assert_array_equal(avx2[name], base[name], err_msg=name)
-        np.testing.assert_array_equal(default[name], base[name], err_msg=name)
 
 
 @pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
 @pytest.mark.parametrize("n, m", SIZES)
-def test_fused_results_differ_from_deterministic_ones_only_by_rounding(kernel, n, m):
+def test_fused_results_differ_from_unfused_ones_only_by_rounding(kernel, n, m):
     kfast.set_deterministic(False)
     assert kfast.kernel_info()["instruction_set"] == "avx2+fma"
     fused = everything(n, m)
@@ -82,6 +91,21 @@ def test_fused_results_differ_from_deterministic_ones_only_by_rounding(kernel, n
         np.testing.assert_allclose(fused[name], plain[name], rtol=1e-9, atol=1e-9, err_msg=name)
         differ += not np.array_equal(fused[name], plain[name])
     assert differ > 0, "the fused loops computed the unfused bits: FMA is not used"
+
+
+@pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
+@pytest.mark.parametrize("n, m", SIZES)
+def test_deterministic_mode_changes_only_faers_products(kernel, n, m):
+    kfast.set_deterministic(False)
+    default = everything(n, m)
+    kfast.set_deterministic(True)
+    exact = everything(n, m)
+    differ = 0
+    for name in default:
+        np.testing.assert_allclose(exact[name], default[name], rtol=1e-9, atol=1e-9, err_msg=name)
+        differ += not np.array_equal(exact[name], default[name])
+    # n <= 12 never reaches faer; (13, 2) and (20, 3) do, outside deterministic mode.
+    assert (differ > 0) == (n > 12)
 
 
 @pytest.mark.parametrize("form", ["joseph", "standard"])
@@ -121,20 +145,24 @@ def test_every_path_computes_the_same_bits_in_either_mode(kernel, deterministic,
 
 
 @pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
-def test_a_streaming_filter_keeps_the_arithmetic_it_was_made_with(kernel):
+def test_a_streaming_filter_keeps_the_loops_it_was_made_with(kernel):
     case = random_case(2, 4, 2, T=20)
     model = kfast.LinearGaussian(**case.model)
-    kfast.set_deterministic(False)
-    fused = kfast.KalmanFilter(model, case.x0, case.P0)
-    kfast.set_deterministic(True)
-    plain = kfast.KalmanFilter(model, case.x0, case.P0)
-    kfast.set_deterministic(False)
-    for y in case.y:
-        fused.step(y)
-        plain.step(y)
+
+    def run(made_with, stepped_with):
+        kernel(made_with)
+        kf = kfast.KalmanFilter(model, case.x0, case.P0)
+        kernel(stepped_with)
+        for y in case.y:
+            kf.step(y)
+        kernel(None)
+        return kf
+
+    fused, plain = run(None, "baseline"), run("baseline", None)
+    np.testing.assert_array_equal(fused.P, run(None, None).P)
+    np.testing.assert_array_equal(plain.P, run("baseline", "baseline").P)
+    assert not np.array_equal(plain.P, fused.P)
     assert fused.loglik == model.loglik(case.y, case.x0, case.P0)
-    kfast.set_deterministic(True)
-    assert plain.loglik == model.loglik(case.y, case.x0, case.P0)
 
 
 def test_the_environment_variable_turns_deterministic_mode_on():
@@ -142,7 +170,7 @@ def test_the_environment_variable_turns_deterministic_mode_on():
     env = dict(os.environ, KFAST_DETERMINISTIC="1")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     deterministic, isa = out.stdout.split()
-    assert deterministic == "True" and isa in {"avx2", "baseline"}
+    assert deterministic == "True" and isa in {"avx2+fma", "baseline+fma"}
     env["KFAST_DETERMINISTIC"] = "0"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split()[0] == "False"
@@ -152,8 +180,47 @@ def test_set_deterministic_returns_the_previous_setting_and_checks_its_argument(
     kfast.set_deterministic(False)
     assert kfast.set_deterministic(True) is False
     assert kfast.deterministic() is True
-    assert kfast.kernel_info()["instruction_set"] != "avx2+fma"
+    assert kfast.kernel_info()["instruction_set"].endswith("+fma") or not HAS_FMA
     with pytest.raises(kfast.KfastError, match="on: expected True or False"):
         kfast.set_deterministic("yes")
     with pytest.raises(ValueError, match="unknown kernel"):
         kfast._kfast._force_kernel("avx1024")
+
+
+def every_family(n, m):
+    """One call of each family whose loops are compiled per size: the robust forms (filter,
+    square-root smoother, streaming), the covariance forms with a time-varying model, the
+    EKF and UKF (their steps at n <= 6 have compile-time sizes), the IMM and the DARE."""
+    case = random_case(9, n, m, T=30, missing="partial")
+    model = kfast.LinearGaussian(**case.model)
+    out = {}
+    for form in ("sqrt", "ud", "information", "sequential"):
+        out[form] = model.filter(case.y, case.x0, case.P0, form=form).P_filt
+        kf = kfast.KalmanFilter(model, case.x0, case.P0, form=form)
+        for y in case.y:
+            kf.step(y)
+        out[f"{form} stream"] = kf.P
+    out["sqrt smooth"] = model.smooth(case.y, case.x0, case.P0, form="sqrt").P_smooth
+    varying = kfast.LinearGaussian(**{**case.model, "F": np.stack([case.model["F"]] * 30)})
+    out["time-varying"] = varying.filter(case.y, case.x0, case.P0).P_filt
+    nonlinear = kfast.NonlinearModel.from_linear(model)
+    out["ekf"] = nonlinear.ekf(case.y, case.x0, case.P0).P_filt
+    out["ukf"] = nonlinear.ukf(case.y, case.x0, case.P0).P_filt
+    out["imm"] = kfast.imm_filter([model, model], np.array([[0.9, 0.1], [0.2, 0.8]]), case.y, case.x0, case.P0).x_filt
+    out["steady state"] = model.steady_state().P_pred
+    return out
+
+
+@pytest.mark.parametrize("n, m", [(2, 1), (4, 2), (6, 3), (9, 2), (13, 2)])
+@pytest.mark.parametrize("forced", ["baseline", "avx2", "baseline+fma"])
+def test_every_family_runs_in_every_loop_the_cpu_has(kernel, forced, n, m):
+    # The loops of compile-time sizes exist only for AVX2 + FMA on x86-64: every other kernel
+    # must reach run-time sizes (a compile-time size there would be a bug, not a slow path).
+    want = every_family(n, m)
+    try:
+        kernel(forced)
+    except ValueError:
+        pytest.skip(f"this CPU cannot run the {forced} loops")
+    got = every_family(n, m)
+    for name in want:
+        np.testing.assert_allclose(got[name], want[name], rtol=1e-8, atol=1e-8, err_msg=name)

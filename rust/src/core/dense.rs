@@ -45,14 +45,14 @@ fn msub<D: Dims>(acc: f64, a: f64, b: f64) -> f64 {
 pub(crate) const FAER_MIN_FLOPS: usize = 8 * 8 * 8 + 1;
 
 /// Whether an `m × k` by `k × n` product goes to faer: only for sizes that allow it
-/// ([`Dims::FAER`]: not compile-time sizes, not in deterministic mode) and only with a
-/// dimension above 12. So a problem within the compiled sizes computes the same bits whether
+/// ([`Dims::FAER`]: not compile-time sizes; fused ones not in deterministic mode, read here
+/// so that a loop's products need no second instance) and only with a dimension above 12. So a problem within the compiled sizes computes the same bits whether
 /// it runs with compile-time or run-time sizes (faer sums in another order), which
 /// `filter_batch` relies on: its shared covariance recursion runs with run-time sizes, each
 /// series' mean with compile-time ones.
 #[inline(always)]
 fn use_faer<D: Dims>(m: usize, k: usize, n: usize) -> bool {
-    D::FAER && m * k * n >= FAER_MIN_FLOPS && m.max(k).max(n) > 12
+    D::FAER && m * k * n >= FAER_MIN_FLOPS && m.max(k).max(n) > 12 && !(D::FUSED && crate::core::isa::deterministic())
 }
 
 fn faer_mul(c: &mut [f64], a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) {

@@ -35,13 +35,14 @@ pub(crate) trait Dims: Copy + Send + Sync {
     const UNROLL: bool;
 
     /// Whether each multiply-add of the kernels rounds once (`a.mul_add(b, c)`, [`Fused`]) or
-    /// twice (`c + a * b`). Fused sizes run only in loops compiled with FMA enabled
-    /// (`core::isa`); elsewhere `mul_add` would be a library call.
+    /// twice (`c + a * b`). Fused sizes run in loops compiled with FMA enabled (`core::isa`),
+    /// except in deterministic mode on an x86-64 CPU without FMA, where `mul_add` is a
+    /// library call (slow, and the same bits).
     const FUSED: bool;
 
     /// Whether products of run-time sizes above 12 may go to faer (`core::dense`), whose
-    /// kernels, and so rounding, depend on the CPU: with fused sizes and for the
-    /// matrix-equation solvers ([`Solver`]), not in deterministic mode.
+    /// kernels, and so rounding, depend on the CPU: with fused run-time sizes outside
+    /// deterministic mode, and for the matrix-equation solvers ([`Solver`]).
     const FAER: bool;
 
     /// Where the loops of these sizes are compiled ([`core::home`](crate::core::home)).
@@ -226,13 +227,16 @@ impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
 
 /// The sizes [`with_dims!`] compiles, in words (for `kfast._kfast.kernel_info()`).
 #[cfg(all(feature = "python", not(kfast_dev_sizes)))]
-pub(crate) const FIXED_SIZES: &str = "n <= 12 with m <= min(n, 4) (compile-time sizes; others run-time)";
+pub(crate) const FIXED_SIZES: &str =
+    "n <= 12 with m <= min(n, 4) in the fused loops (compile-time sizes; others, and the unfused loops, run-time)";
 #[cfg(all(feature = "python", kfast_dev_sizes))]
 pub(crate) const FIXED_SIZES: &str = "(1, 1), (2, 1), (4, 2), (5, 2), (9, 2) only (a kfast_dev_sizes build)";
 
 /// Evaluates `$body` with `$d` bound to compile-time sizes for n ≤ 12 and m ≤ min(n, 4), so
 /// that the kernels are unrolled for them, and to the run-time sizes otherwise:
-/// `with_dims!(n, m, |d| run.filter(d, &mut out))`. The body is compiled once per size; the
+/// `with_dims!(kernel, n, m, |d| run.filter(d, &mut out))`. Compile-time sizes only for a
+/// `kernel` whose loops are compiled for them ([`Kernel::fixed_sizes`](crate::core::isa::Kernel::fixed_sizes)):
+/// the body must run its loops with that kernel. The body is compiled once per size; the
 /// arithmetic is the same either way.
 ///
 /// Why every pair up to 12 × 4: a step with run-time sizes costs 2.5–4× one with compile-time
@@ -243,89 +247,89 @@ pub(crate) const FIXED_SIZES: &str = "(1, 1), (2, 1), (4, 2), (5, 2), (9, 2) onl
 /// `RUSTFLAGS="--cfg kfast_dev_sizes"` compiles only (1, 1), (2, 1), (4, 2), (5, 2) and (9, 2)
 /// (with a separate `CARGO_TARGET_DIR`, as the flag rebuilds every dependency).
 macro_rules! with_dims {
-    ($n:expr, $m:expr, |$d:ident| $body:expr) => {{
+    ($kernel:expr, $n:expr, $m:expr, |$d:ident| $body:expr) => {{
         use $crate::core::dims::{Dyn, Fixed};
-        match ($n, $m) {
-            (1, 1) => with_dims!(@fixed 1, 1, $d, $body),
-            (2, 1) => with_dims!(@fixed 2, 1, $d, $body),
+        match ($crate::core::isa::Kernel::fixed_sizes($kernel), $n, $m) {
+            (true, 1, 1) => with_dims!(@fixed 1, 1, $d, $body),
+            (true, 2, 1) => with_dims!(@fixed 2, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (2, 2) => with_dims!(@fixed 2, 2, $d, $body),
+            (true, 2, 2) => with_dims!(@fixed 2, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (3, 1) => with_dims!(@fixed 3, 1, $d, $body),
+            (true, 3, 1) => with_dims!(@fixed 3, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (3, 2) => with_dims!(@fixed 3, 2, $d, $body),
+            (true, 3, 2) => with_dims!(@fixed 3, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (3, 3) => with_dims!(@fixed 3, 3, $d, $body),
+            (true, 3, 3) => with_dims!(@fixed 3, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (4, 1) => with_dims!(@fixed 4, 1, $d, $body),
-            (4, 2) => with_dims!(@fixed 4, 2, $d, $body),
+            (true, 4, 1) => with_dims!(@fixed 4, 1, $d, $body),
+            (true, 4, 2) => with_dims!(@fixed 4, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (4, 3) => with_dims!(@fixed 4, 3, $d, $body),
+            (true, 4, 3) => with_dims!(@fixed 4, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (4, 4) => with_dims!(@fixed 4, 4, $d, $body),
+            (true, 4, 4) => with_dims!(@fixed 4, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (5, 1) => with_dims!(@fixed 5, 1, $d, $body),
-            (5, 2) => with_dims!(@fixed 5, 2, $d, $body),
+            (true, 5, 1) => with_dims!(@fixed 5, 1, $d, $body),
+            (true, 5, 2) => with_dims!(@fixed 5, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (5, 3) => with_dims!(@fixed 5, 3, $d, $body),
+            (true, 5, 3) => with_dims!(@fixed 5, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (5, 4) => with_dims!(@fixed 5, 4, $d, $body),
+            (true, 5, 4) => with_dims!(@fixed 5, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (6, 1) => with_dims!(@fixed 6, 1, $d, $body),
+            (true, 6, 1) => with_dims!(@fixed 6, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (6, 2) => with_dims!(@fixed 6, 2, $d, $body),
+            (true, 6, 2) => with_dims!(@fixed 6, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (6, 3) => with_dims!(@fixed 6, 3, $d, $body),
+            (true, 6, 3) => with_dims!(@fixed 6, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (6, 4) => with_dims!(@fixed 6, 4, $d, $body),
+            (true, 6, 4) => with_dims!(@fixed 6, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (7, 1) => with_dims!(@fixed 7, 1, $d, $body),
+            (true, 7, 1) => with_dims!(@fixed 7, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (7, 2) => with_dims!(@fixed 7, 2, $d, $body),
+            (true, 7, 2) => with_dims!(@fixed 7, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (7, 3) => with_dims!(@fixed 7, 3, $d, $body),
+            (true, 7, 3) => with_dims!(@fixed 7, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (7, 4) => with_dims!(@fixed 7, 4, $d, $body),
+            (true, 7, 4) => with_dims!(@fixed 7, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (8, 1) => with_dims!(@fixed 8, 1, $d, $body),
+            (true, 8, 1) => with_dims!(@fixed 8, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (8, 2) => with_dims!(@fixed 8, 2, $d, $body),
+            (true, 8, 2) => with_dims!(@fixed 8, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (8, 3) => with_dims!(@fixed 8, 3, $d, $body),
+            (true, 8, 3) => with_dims!(@fixed 8, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (8, 4) => with_dims!(@fixed 8, 4, $d, $body),
+            (true, 8, 4) => with_dims!(@fixed 8, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (9, 1) => with_dims!(@fixed 9, 1, $d, $body),
-            (9, 2) => with_dims!(@fixed 9, 2, $d, $body),
+            (true, 9, 1) => with_dims!(@fixed 9, 1, $d, $body),
+            (true, 9, 2) => with_dims!(@fixed 9, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (9, 3) => with_dims!(@fixed 9, 3, $d, $body),
+            (true, 9, 3) => with_dims!(@fixed 9, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (9, 4) => with_dims!(@fixed 9, 4, $d, $body),
+            (true, 9, 4) => with_dims!(@fixed 9, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (10, 1) => with_dims!(@fixed 10, 1, $d, $body),
+            (true, 10, 1) => with_dims!(@fixed 10, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (10, 2) => with_dims!(@fixed 10, 2, $d, $body),
+            (true, 10, 2) => with_dims!(@fixed 10, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (10, 3) => with_dims!(@fixed 10, 3, $d, $body),
+            (true, 10, 3) => with_dims!(@fixed 10, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (10, 4) => with_dims!(@fixed 10, 4, $d, $body),
+            (true, 10, 4) => with_dims!(@fixed 10, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (11, 1) => with_dims!(@fixed 11, 1, $d, $body),
+            (true, 11, 1) => with_dims!(@fixed 11, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (11, 2) => with_dims!(@fixed 11, 2, $d, $body),
+            (true, 11, 2) => with_dims!(@fixed 11, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (11, 3) => with_dims!(@fixed 11, 3, $d, $body),
+            (true, 11, 3) => with_dims!(@fixed 11, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (11, 4) => with_dims!(@fixed 11, 4, $d, $body),
+            (true, 11, 4) => with_dims!(@fixed 11, 4, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (12, 1) => with_dims!(@fixed 12, 1, $d, $body),
+            (true, 12, 1) => with_dims!(@fixed 12, 1, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (12, 2) => with_dims!(@fixed 12, 2, $d, $body),
+            (true, 12, 2) => with_dims!(@fixed 12, 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (12, 3) => with_dims!(@fixed 12, 3, $d, $body),
+            (true, 12, 3) => with_dims!(@fixed 12, 3, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
-            (12, 4) => with_dims!(@fixed 12, 4, $d, $body),
-            (n, m) => {
+            (true, 12, 4) => with_dims!(@fixed 12, 4, $d, $body),
+            (_, n, m) => {
                 let $d = Dyn { n, m };
                 $body
             }

@@ -12,7 +12,9 @@
 //!
 //! The runners are not inlined: each runs its job, inlined, in its own function, which is
 //! what lets the compiler keep a loop's small buffers in registers and compile it for the
-//! instruction set (see `core::isa`).
+//! instruction set (see `core::isa`). On x86-64 a compile-time size has only the AVX2 + FMA
+//! runner instantiated (`core::isa`, `Kernel::fixed_sizes`): its other runners exist, but no
+//! loop is ever compiled into them.
 
 /// The runners of one size's loops (see the module docs).
 pub(crate) trait Home {
@@ -20,9 +22,7 @@ pub(crate) trait Home {
     fn run_baseline<R>(job: impl FnOnce() -> R) -> R;
 
     /// `job` for x86-64 with AVX2, separate multiplies and adds (the same bits as
-    /// [`run_baseline`](Self::run_baseline)). Compile-time sizes run the baseline loop: the
-    /// same bits, and no third instance of every loop of every size (compiling them for AVX2
-    /// without FMA, which only deterministic mode runs, doubled the release build).
+    /// [`run_baseline`](Self::run_baseline) with separate ones): run-time sizes only.
     ///
     /// # Safety
     /// The CPU must support AVX2.

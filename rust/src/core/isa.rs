@@ -1,20 +1,27 @@
 //! The instruction sets a loop is compiled for, chosen at run time, and whether its
 //! multiply-adds are fused.
 //!
-//! A time loop is compiled for the baseline of the target and, on x86-64, twice more: with
-//! AVX2 and separate multiplies and adds, and with AVX2 and FMA, its kernels' multiply-adds
-//! fused ([`Fused`](crate::core::dims::Fused) sizes: `c + a b` rounded once). [`run_best!`]
-//! picks the loop once per call:
+//! The kernels' multiply-adds are fused ([`Fused`](crate::core::dims::Fused) sizes: each
+//! `c + a b` rounded once), wherever the CPU can: a fused multiply-add is one IEEE operation,
+//! so every CPU computes the same bits from the same operations in the same order, whichever
+//! instructions carry them out. [`run_best!`] picks the loop once per call:
 //!
-//! - by default the fastest the CPU has: AVX2 + FMA where there is FMA;
-//! - in deterministic mode ([`set_deterministic`], or the environment variable
-//!   `KFAST_DETERMINISTIC=1` read at the first call) never a fused loop: the AVX2 or the
-//!   baseline loop, which give the same bits as each other — on every CPU, the same bits.
+//! - x86-64 with AVX2 and FMA (nearly every x86-64 CPU since 2013–2015): the loops compiled
+//!   for AVX2 + FMA, with compile-time sizes (`with_dims!`);
+//! - every other target: the loops compiled for its baseline, fused (aarch64's baseline has
+//!   FMA), with compile-time sizes;
+//! - an x86-64 CPU without FMA: the loops of run-time sizes only, with separate multiplies and
+//!   adds (compiled for AVX2 where the CPU has it) — or, in deterministic mode, fused in
+//!   software (slow, and the same bits as everywhere else). Compile-time sizes are not
+//!   compiled for such CPUs: a second instance of every loop of every size doubled the
+//!   release build (docs/decisions.md, "One arithmetic").
 //!
-//! Fused results differ from deterministic ones by rounding (each fused multiply-add rounds
-//! once instead of twice); both are computed in the same order on every path, so the filter,
-//! the batch filter, the streaming filter and the smoothers agree to the bit with each other
-//! in either mode.
+//! Deterministic mode ([`set_deterministic`], or the environment variable
+//! `KFAST_DETERMINISTIC=1` read at the first call) also keeps the products of run-time sizes
+//! out of faer, whose kernels (and so rounding) depend on the CPU: then every CPU computes the
+//! same bits. Outside it, results differ from deterministic ones only above n = 12, by
+//! rounding. Every path of one recursion (the filter, the batch filter, the streaming filter,
+//! the smoothers) computes in the same order, so they agree to the bit with each other.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -24,14 +31,18 @@ use crate::core::home::Home;
 /// The loops a call can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Kernel {
-    /// The target's default instruction set (SSE2 on x86-64, NEON on aarch64).
+    /// The target's baseline instructions (SSE2 on x86-64), separate multiplies and adds: an
+    /// x86-64 CPU without AVX2, outside deterministic mode. Run-time sizes only.
     Baseline,
-    /// x86-64 with AVX2, separate multiplies and adds (the same bits as `Baseline`): the
-    /// loops of run-time sizes compiled for AVX2, those of compile-time sizes the baseline
-    /// ones (`Home::run_unfused_avx2`: build time).
+    /// x86-64 with AVX2, separate multiplies and adds: a CPU without FMA, outside deterministic
+    /// mode. Run-time sizes only.
     Avx2,
     /// x86-64 with AVX2 and fused multiply-adds.
     Avx2Fma,
+    /// Fused multiply-adds in the target's baseline instructions: every target but x86-64
+    /// (hardware FMA on aarch64), and deterministic mode on an x86-64 CPU without FMA
+    /// (software FMA, run-time sizes only).
+    BaselineFma,
 }
 
 impl Kernel {
@@ -41,7 +52,21 @@ impl Kernel {
             Kernel::Baseline => "baseline",
             Kernel::Avx2 => "avx2",
             Kernel::Avx2Fma => "avx2+fma",
+            Kernel::BaselineFma => "baseline+fma",
         }
+    }
+
+    /// Whether its multiply-adds are fused ([`Fused`](crate::core::dims::Fused) sizes).
+    #[inline(always)]
+    pub(crate) fn fused(self) -> bool {
+        matches!(self, Kernel::Avx2Fma | Kernel::BaselineFma)
+    }
+
+    /// Whether its loops are compiled for compile-time sizes (`with_dims!` gives run-time
+    /// sizes otherwise): on x86-64 only the AVX2 + FMA loops are.
+    #[inline(always)]
+    pub(crate) fn fixed_sizes(self) -> bool {
+        cfg!(not(target_arch = "x86_64")) || self == Kernel::Avx2Fma
     }
 }
 
@@ -50,8 +75,8 @@ static DETERMINISTIC: AtomicU8 = AtomicU8::new(0);
 /// A forced kernel for tests and benchmarks (0: none; 1 + the `Kernel` in declaration order).
 static FORCED: AtomicU8 = AtomicU8::new(0);
 
-/// Whether the loops avoid fused multiply-adds, so that every CPU computes the same bits
-/// (off by default; `KFAST_DETERMINISTIC=1` turns it on for the process).
+/// Whether the results are the same bits on every CPU: the products of run-time sizes above
+/// 12 stay out of faer (off by default; `KFAST_DETERMINISTIC=1` turns it on for the process).
 pub fn deterministic() -> bool {
     match DETERMINISTIC.load(Ordering::Relaxed) {
         0 => {
@@ -65,8 +90,9 @@ pub fn deterministic() -> bool {
 }
 
 /// Turns deterministic mode on or off for the whole process (see the module docs); returns
-/// the previous setting. Calls already running keep the loop they started with; a streaming
-/// filter keeps the arithmetic it was created with.
+/// the previous setting. Calls already running keep their loops; a call with run-time sizes
+/// above 12 running while the mode changes may compute some products each way (the same
+/// numbers to rounding). A streaming filter keeps the loops it was created with.
 pub fn set_deterministic(on: bool) -> bool {
     let previous = deterministic();
     DETERMINISTIC.store(1 + on as u8, Ordering::Relaxed);
@@ -84,6 +110,7 @@ pub(crate) fn force_kernel(kernel: Option<Kernel>) -> bool {
         Some(Kernel::Baseline) => 1,
         Some(Kernel::Avx2) => 2,
         Some(Kernel::Avx2Fma) => 3,
+        Some(Kernel::BaselineFma) => 4,
     };
     FORCED.store(code, Ordering::Relaxed);
     true
@@ -91,14 +118,23 @@ pub(crate) fn force_kernel(kernel: Option<Kernel>) -> bool {
 
 fn supported(kernel: Kernel) -> bool {
     match kernel {
+        Kernel::BaselineFma => true,
+        #[cfg(target_arch = "x86_64")]
         Kernel::Baseline => true,
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2Fma => std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma"),
+        Kernel::Avx2Fma => has_avx2_fma(),
         #[cfg(not(target_arch = "x86_64"))]
         _ => false,
     }
+}
+
+/// Whether this x86-64 CPU has AVX2 and FMA (the answer is cached by the standard library).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn has_avx2_fma() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
 /// The instruction sets of this CPU that the loops can use, by name (for bug reports).
@@ -128,56 +164,65 @@ pub(crate) fn kernel() -> Kernel {
         1 => return Kernel::Baseline,
         2 => return Kernel::Avx2,
         3 => return Kernel::Avx2Fma,
+        4 => return Kernel::BaselineFma,
         _ => {}
     }
-    if !deterministic() && supported(Kernel::Avx2Fma) {
-        Kernel::Avx2Fma
-    } else if supported(Kernel::Avx2) {
-        Kernel::Avx2
-    } else {
-        Kernel::Baseline
+    #[cfg(target_arch = "x86_64")]
+    {
+        if supported(Kernel::Avx2Fma) {
+            Kernel::Avx2Fma
+        } else if deterministic() {
+            Kernel::BaselineFma
+        } else if supported(Kernel::Avx2) {
+            Kernel::Avx2
+        } else {
+            Kernel::Baseline
+        }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    Kernel::BaselineFma
 }
 
-/// The loop a call starting now runs on this CPU: `"avx2+fma"` (x86-64 with AVX2 and FMA, the
-/// default there), `"avx2"` (AVX2 without FMA, or deterministic mode) or `"baseline"` (the
-/// target's default: SSE2 on x86-64, NEON on aarch64). `"avx2"` and `"baseline"` give the
-/// same bits.
+/// The loops a call starting now runs on this CPU: `"avx2+fma"` (x86-64 with AVX2 and FMA),
+/// `"baseline+fma"` (every other target, fused multiply-adds in its baseline instructions;
+/// an x86-64 CPU without FMA in deterministic mode, in software), `"avx2"` or `"baseline"`
+/// (an x86-64 CPU without FMA, separate multiplies and adds, which give the same bits as
+/// each other). The fused loops give the same bits as each other.
 pub fn instruction_set() -> &'static str {
     kernel().name()
 }
 
 /// Evaluates `$body` with `$d` bound to the sizes `$sizes` compiled for `$kernel` (a
-/// [`Kernel`], usually [`kernel()`] read once at the start of the call) — for `Avx2Fma`
-/// wrapped in [`Fused`](crate::core::dims::Fused) — in its own function with that
-/// instruction set enabled, a runner of the sizes' [`Home`](crate::core::home::Home):
-/// `run_best!(self.kernel, d, |d| self.filter_plain(d, out))`. The body must inline what it
-/// calls (the kernels are `#[inline(always)]`) so that all of it is compiled for that
-/// instruction set; each call site compiles its loop separately. The body's captures reach
-/// the loop as fields of a closure, not as arguments: the compiler no longer knows that two
-/// captured `&mut` slices do not overlap, which slowed the RTS smoother's backward pass
-/// (whose arrays are arguments) by 12%; such a loop keeps its own `#[target_feature]`
-/// methods, chosen by the same [`Kernel`].
+/// [`Kernel`], usually [`kernel()`] read once at the start of the call; the sizes from
+/// `with_dims!` for the same kernel) — wrapped in [`Fused`](crate::core::dims::Fused) for a
+/// fused kernel — in its own function with that instruction set enabled, a runner of the
+/// sizes' [`Home`](crate::core::home::Home): `run_best!(self.kernel, d, |d|
+/// self.filter_plain(d, out))`. The body must inline what it calls (the kernels are
+/// `#[inline(always)]`) so that all of it is compiled for that instruction set; each call
+/// site compiles its loop separately. The body's captures reach the loop as fields of a
+/// closure, not as arguments: the compiler no longer knows that two captured `&mut` slices
+/// do not overlap, which slowed the RTS smoother's backward pass (whose arrays are
+/// arguments) by 12%; such a loop keeps its own `#[target_feature]` methods, chosen by the
+/// same [`Kernel`].
 macro_rules! run_best {
     ($kernel:expr, $sizes:expr, |$d:ident| $body:expr) => {{
         let (kernel, sizes) = ($kernel, $sizes);
-        match kernel {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: kernel() returns Avx2Fma only on CPUs with AVX2 and FMA.
-            $crate::core::isa::Kernel::Avx2Fma => unsafe {
+        if kernel.fused() {
+            // SAFETY: kernel() returns a kernel only on CPUs that run it.
+            unsafe {
                 $crate::core::isa::run_fused(
                     sizes,
+                    kernel,
                     #[inline(always)]
                     move || {
                         let $d = $crate::core::dims::Fused(sizes);
                         $body
                     },
                 )
-            },
-            // One closure for the AVX2 and the baseline loop: compile-time sizes run the same
-            // (baseline) instance for both.
-            // SAFETY: kernel() returns Avx2 only on CPUs with AVX2.
-            _ => unsafe {
+            }
+        } else {
+            // SAFETY: as above.
+            unsafe {
                 $crate::core::isa::run_unfused(
                     sizes,
                     kernel,
@@ -187,25 +232,37 @@ macro_rules! run_best {
                         $body
                     },
                 )
-            },
+            }
         }
     }};
 }
 pub(crate) use run_best;
 
-/// `job` in the fused loop of sizes `D` (`run_best!`).
+/// `job` in the fused loop of sizes `D` for the fused `kernel` (`run_best!`). Compile-time
+/// sizes on x86-64 have only the AVX2 + FMA loop: the other is not compiled for them
+/// (`Kernel::fixed_sizes`).
 ///
 /// # Safety
-/// The CPU must support AVX2 and FMA.
+/// `kernel` must be supported by the CPU.
 #[doc(hidden)]
-#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(crate) unsafe fn run_fused<D: Dims, R>(_sizes: D, job: impl FnOnce() -> R) -> R {
-    // SAFETY: as the caller's.
-    unsafe { D::Home::run_avx2_fma(job) }
+pub(crate) unsafe fn run_fused<D: Dims, R>(_sizes: D, kernel: Kernel, job: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if kernel == Kernel::Avx2Fma {
+            // SAFETY: as the caller's.
+            return unsafe { D::Home::run_avx2_fma(job) };
+        }
+        if D::FIXED {
+            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+        }
+    }
+    let _ = kernel;
+    D::Home::run_baseline(job)
 }
 
-/// `job` in the unfused loop of sizes `D` for `kernel` (`run_best!`).
+/// `job` in the loop of sizes `D` with separate multiplies and adds, for `kernel`
+/// (`run_best!`): run-time sizes on x86-64 only (`Kernel::fixed_sizes`).
 ///
 /// # Safety
 /// `kernel` must be supported by the CPU.
@@ -213,12 +270,21 @@ pub(crate) unsafe fn run_fused<D: Dims, R>(_sizes: D, job: impl FnOnce() -> R) -
 #[inline(always)]
 pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
-    if kernel == Kernel::Avx2 {
-        // SAFETY: as the caller's.
-        return unsafe { D::Home::run_unfused_avx2(job) };
+    {
+        if D::FIXED {
+            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+        }
+        if kernel == Kernel::Avx2 {
+            // SAFETY: as the caller's.
+            return unsafe { D::Home::run_unfused_avx2(job) };
+        }
+        D::Home::run_baseline(job)
     }
-    let _ = kernel;
-    D::Home::run_baseline(job)
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (kernel, job);
+        unreachable!("every loop is fused on this target");
+    }
 }
 
 /// Runs `job` compiled with AVX2 where the CPU has it and the loops may use it (not
@@ -236,7 +302,7 @@ pub(crate) fn run_wide<R>(job: impl FnOnce() -> R) -> R {
         unsafe fn avx2<R>(job: impl FnOnce() -> R) -> R {
             job()
         }
-        if kernel() != Kernel::Baseline {
+        if matches!(kernel(), Kernel::Avx2 | Kernel::Avx2Fma) {
             // SAFETY: kernel() is Avx2 or Avx2Fma only on CPUs with AVX2.
             return unsafe { avx2(job) };
         }
@@ -246,14 +312,20 @@ pub(crate) fn run_wide<R>(job: impl FnOnce() -> R) -> R {
 
 /// Runs `job` — work on buffers of sizes `D` outside a [`run_best!`] loop (a streaming
 /// filter's step, a rare step out of line) — in a function of its own in `D`'s home, with
-/// FMA enabled if `D` is [`Fused`](crate::core::dims::Fused). Fused sizes are only made by
-/// [`run_best!`] and the streaming filter for [`Kernel::Avx2Fma`], so on CPUs with FMA.
+/// FMA enabled if `D` is [`Fused`](crate::core::dims::Fused) and the CPU has it (fused
+/// arithmetic gives the same bits either way; compile-time sizes on x86-64 are always fused
+/// and only made on CPUs with AVX2 and FMA, `Kernel::fixed_sizes`).
 #[inline(always)]
 pub(crate) fn run_out_of_line<D: Dims, R>(job: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
-    if D::FUSED {
-        // SAFETY: fused sizes exist only on CPUs with AVX2 and FMA (above).
-        return unsafe { D::Home::run_avx2_fma(job) };
+    {
+        if D::FUSED && (D::FIXED || has_avx2_fma()) {
+            // SAFETY: checked above; compile-time sizes exist only on such CPUs.
+            return unsafe { D::Home::run_avx2_fma(job) };
+        }
+        if D::FIXED {
+            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+        }
     }
     D::Home::run_baseline(job)
 }

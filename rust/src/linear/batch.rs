@@ -119,7 +119,7 @@ fn run_shared(
     if let Some(p) = out.p_filt {
         p.copy_from_slice(&gains.p_filt);
     }
-    with_dims!(n, m, |d| means_only_all(d, kernel, model, b, form, &gains, out.x_filt, out.loglik));
+    with_dims!(kernel, n, m, |d| means_only_all(d, kernel, model, b, form, &gains, out.x_filt, out.loglik));
     Ok(())
 }
 
@@ -185,7 +185,7 @@ fn run_each(
             let run = Run { model, y, u, x0, p0, form, converge_tol: None, kernel, start: 0 };
             let mut o = FilterOutputs::default();
             (o.x_filt, o.p_filt) = (Some(x_out), p_out);
-            *ll = with_dims!(n, m, |d| run.filter(d, &mut o)).map_err(|e| prefix_series(e, s))?;
+            *ll = with_dims!(kernel, n, m, |d| run.filter(d, &mut o)).map_err(|e| prefix_series(e, s))?;
             Ok(())
         },
     )

@@ -732,16 +732,18 @@ struct Residual<'a> {
 }
 
 /// `$body` with `$d` bound to compile-time sizes for the common small (n, m) — n ≤ 6, m ≤ 3 —
-/// so that the dense kernels it calls are unrolled for them; `$other` for any other size. The
-/// kernels' arithmetic is the same at either kind of size, so the bits are too.
+/// so that the dense kernels it calls are unrolled for them, where `$kernel` has loops for
+/// compile-time sizes (`Kernel::fixed_sizes`; `$body` must run `$kernel`'s loop); `$other`
+/// otherwise, with separate multiplies and adds. (So on an x86-64 CPU without FMA these steps
+/// are never fused, even in deterministic mode: docs/conventions.md, "Arithmetic".)
 macro_rules! with_step_sizes {
-    ($n:expr, $m:expr, |$d:ident| $body:expr, else $other:expr) => {
-        with_step_sizes!(@arms ($n, $m), $d, $body, $other;
+    ($kernel:expr, $n:expr, $m:expr, |$d:ident| $body:expr, else $other:expr) => {
+        with_step_sizes!(@arms ($kernel.fixed_sizes(), $n, $m), $d, $body, $other;
             (1, 1) (2, 1) (2, 2) (3, 1) (3, 2) (3, 3) (4, 1) (4, 2) (4, 3) (5, 1) (5, 2) (5, 3) (6, 1) (6, 2) (6, 3))
     };
-    (@arms ($n:expr, $m:expr), $d:ident, $body:expr, $other:expr; $(($a:literal, $b:literal))*) => {
-        match ($n, $m) {
-            $(($a, $b) => {
+    (@arms ($fixed:expr, $n:expr, $m:expr), $d:ident, $body:expr, $other:expr; $(($a:literal, $b:literal))*) => {
+        match ($fixed, $n, $m) {
+            $((true, $a, $b) => {
                 let $d = Fixed::<$a, $b>;
                 $body
             })*
@@ -761,7 +763,7 @@ fn propagate(kernel: Kernel, n: usize, k: usize, f: &[f64], cov: &[f64], fp: &mu
         mul_bt_sym::<D>(p, fp, f, n, k);
     }
     if k == n {
-        with_step_sizes!(n, 1, |d| run_best!(kernel, d, |d| sized(d, d.n(), f, cov, fp, p)), else {
+        with_step_sizes!(kernel, n, 1, |d| run_best!(kernel, d, |d| sized(d, d.n(), f, cov, fp, p)), else {
             sized(Dyn { n, m: 1 }, k, f, cov, fp, p)
         })
     } else {
@@ -808,7 +810,7 @@ fn gaussian_update(
         gauss.copy_results_of(&local, mo, n);
         Ok(())
     }
-    with_step_sizes!(n, m, |d| run_best!(kernel, d, |d| sized(d, gauss, mo, pred, (x, p), (x_filt, p_filt), t)), else {
+    with_step_sizes!(kernel, n, m, |d| run_best!(kernel, d, |d| sized(d, gauss, mo, pred, (x, p), (x_filt, p_filt), t)), else {
         gauss.apply(Dyn { n, m }, mo, pred, x, p, x_filt, p_filt, t)
     })
 }
@@ -1011,7 +1013,7 @@ impl Step {
         }
         let (n, m, kernel) = (self.n, self.m, self.kernel);
         let Step { p, jac_h, c_full, s_full, .. } = self;
-        with_step_sizes!(n, m, |d| run_best!(kernel, d, |d| sized(d, p, jac_h, c_full, s_full)), else {
+        with_step_sizes!(kernel, n, m, |d| run_best!(kernel, d, |d| sized(d, p, jac_h, c_full, s_full)), else {
             sized(Dyn { n, m }, p, jac_h, c_full, s_full)
         });
         self.add_measurement_noise(sensor);

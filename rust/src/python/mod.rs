@@ -306,7 +306,7 @@ fn deterministic() -> bool {
 }
 
 /// `_force_kernel(name)`: every later call runs the loops `name` ("baseline", "avx2",
-/// "avx2+fma"; `None` undoes it), for tests and benchmark rows. Raises `ValueError` if the
+/// "avx2+fma", "baseline+fma"; `None` undoes it), for tests and benchmark rows. Raises `ValueError` if the
 /// name is unknown or this CPU cannot run it.
 #[pyfunction]
 #[pyo3(signature = (name))]
@@ -315,7 +315,7 @@ fn _force_kernel(name: Option<&str>) -> PyResult<()> {
     let kernel = match name {
         None => None,
         Some(name) => Some(
-            [Kernel::Baseline, Kernel::Avx2, Kernel::Avx2Fma]
+            [Kernel::Baseline, Kernel::Avx2, Kernel::Avx2Fma, Kernel::BaselineFma]
                 .into_iter()
                 .find(|k| k.name() == name)
                 .ok_or_else(|| PyValueError::new_err(format!("name: unknown kernel {name:?}")))?,

@@ -96,7 +96,7 @@ pub fn filter_into(
     out.check_sizes(steps, n, m)?;
     let converge_tol = check_converge_tol(model, options.converge_tol)?;
     let run = Run { model, y, u, x0, p0, form: options.form, converge_tol, kernel: kernel(), start: 0 };
-    with_dims!(n, m, |d| run.filter(d, &mut out))
+    with_dims!(run.kernel, n, m, |d| run.filter(d, &mut out))
 }
 
 /// [`filter_into`] with an exact diffuse start (docs/algorithms.md, "Exact diffuse
@@ -150,7 +150,7 @@ pub fn filter_diffuse_into(
         kernel: kernel(),
         start: start.steps,
     };
-    let rest = with_dims!(n, m, |d| run.filter(d, &mut out))?;
+    let rest = with_dims!(run.kernel, n, m, |d| run.filter(d, &mut out))?;
     Ok((start.loglik + rest, start.steps))
 }
 

@@ -8,7 +8,7 @@ use super::step::{UpdateForm, Workspace};
 use crate::core::dense::symmetrize;
 use crate::core::dims::{with_dims, Dims, Fused};
 use crate::core::gaussian::LoglikSum;
-use crate::core::isa::{kernel, run_out_of_line, Kernel};
+use crate::core::isa::{kernel, run_out_of_line};
 use crate::core::validate::{
     check_input_row, check_joint_psd, check_observation, check_prior, check_psd, check_symmetric,
 };
@@ -333,8 +333,8 @@ impl StreamWorkspace {
         if !form.is_covariance_form() {
             return Ok(StreamWorkspace(super::forms::stream::new_stream(form, n, m, k, x0, p0)?));
         }
-        let fused = kernel() == Kernel::Avx2Fma;
-        Ok(StreamWorkspace(with_dims!(n, m, |d| new_stream(d, fused, k, x0, p0))))
+        let kernel = kernel();
+        Ok(StreamWorkspace(with_dims!(kernel, n, m, |d| new_stream(d, kernel.fused(), k, x0, p0))))
     }
 }
 
@@ -351,8 +351,10 @@ where
 {
     if fused {
         Box::new(Workspace::new(Fused(d), k, x0, p0))
-    } else {
+    } else if cfg!(target_arch = "x86_64") && !D::FIXED {
         Box::new(Workspace::new(d, k, x0, p0))
+    } else {
+        unreachable!("separate multiply-adds run only with run-time sizes on x86-64")
     }
 }
 

@@ -102,7 +102,8 @@ pub(crate) fn rts_in_place(
         l[..n * n].fill(0.0);
     }
     let pass = Backward { model, priors };
-    with_dims!(n, m, |d| pass.run(d, x, p, p_lag1))
+    let kernel = kernel();
+    with_dims!(kernel, n, m, |d| pass.run(d, kernel, x, p, p_lag1))
 }
 
 struct Backward<'a> {
@@ -123,16 +124,29 @@ struct Scratch<D: Dims> {
 impl Backward<'_> {
     /// All steps t = T−2 … 0, compiled for the loops of `core::isa` like the filter's (in
     /// methods of their own: through a closure the arrays would lose their no-alias facts).
-    fn run<D: Dims>(&self, d: D, x: &mut [f64], p: &mut [f64], p_lag1: Option<&mut [f64]>) -> Result<()> {
-        match kernel() {
+    /// (`d` from `with_dims!` for `kernel`: compile-time sizes on x86-64 only with AVX2 + FMA.)
+    fn run<D: Dims>(
+        &self,
+        d: D,
+        kernel: Kernel,
+        x: &mut [f64],
+        p: &mut [f64],
+        p_lag1: Option<&mut [f64]>,
+    ) -> Result<()> {
+        match kernel {
             // SAFETY: kernel() returns these only on CPUs with the instruction sets enabled.
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2Fma => unsafe { self.run_avx2_fma(Fused(d), x, p, p_lag1) },
-            // Compile-time sizes without FMA run the baseline loop, as the filter's do
-            // (`Home::run_unfused_avx2`): the same bits, and no third instance per size.
+            _ if cfg!(target_arch = "x86_64") && D::FIXED => {
+                unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64")
+            }
+            Kernel::BaselineFma => self.run_loop(Fused(d), x, p, p_lag1),
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2 if !D::FIXED => unsafe { self.run_avx2(d, x, p, p_lag1) },
+            Kernel::Avx2 => unsafe { self.run_avx2(d, x, p, p_lag1) },
+            #[cfg(target_arch = "x86_64")]
             _ => self.run_loop(d, x, p, p_lag1),
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => unreachable!("every loop is fused on this target"),
         }
     }
 

@@ -22,11 +22,11 @@
 //! in its size's codegen unit (`core::home`).
 
 /// Evaluates `$body` with `$d` bound to the state size n as a compile-time constant for
-/// n ≤ 12 (`Fixed<n, 1>`: the measurement size is not part of a scalar update's sizes), else
-/// to run-time sizes.
+/// n ≤ 12 (`Fixed<n, 1>`: the measurement size is not part of a scalar update's sizes) where
+/// `$kernel` has loops for compile-time sizes (`Kernel::fixed_sizes`), else to run-time sizes.
 macro_rules! with_state_dims {
-    ($n:expr, |$d:ident| $body:expr) => {{
-        match $n {
+    ($kernel:expr, $n:expr, |$d:ident| $body:expr) => {{
+        match (if $crate::core::isa::Kernel::fixed_sizes($kernel) { $n } else { 0 }) {
             1 => with_state_dims!(@fixed 1, $d, $body),
             2 => with_state_dims!(@fixed 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
@@ -46,8 +46,8 @@ macro_rules! with_state_dims {
             11 => with_state_dims!(@fixed 11, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
             12 => with_state_dims!(@fixed 12, $d, $body),
-            n => {
-                let $d = Dyn { n, m: 1 };
+            _ => {
+                let $d = Dyn { n: $n, m: 1 };
                 $body
             }
         }
@@ -116,7 +116,7 @@ pub(crate) fn filter(run: &Run<'_>, out: &mut FilterOutputs<'_>) -> Result<f64> 
     if run.converge_tol.is_some() {
         return Err(Error::arg("converge_tol", "gain freezing is only for form=\"joseph\" or \"standard\""));
     }
-    with_state_dims!(run.model.n_states(), |d| by_form(d, run, out))
+    with_state_dims!(run.kernel, run.model.n_states(), |d| by_form(d, run, out))
 }
 
 /// The loop of `run.form`, compiled for the call's instruction set (`run_best!`, as the

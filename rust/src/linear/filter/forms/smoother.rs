@@ -49,7 +49,7 @@ pub(crate) fn smooth_square_root(
     out: &mut FilterOutputs<'_>,
     smooth: SquareRootSmootherOutputs<'_>,
 ) -> Result<f64> {
-    with_state_dims!(run.model.n_states(), |d| in_best_loop(d, run, out, smooth))
+    with_state_dims!(run.kernel, run.model.n_states(), |d| in_best_loop(d, run, out, smooth))
 }
 
 /// [`smooth_in`] for the call's instruction set, in the size's codegen unit (as the filter).

@@ -44,7 +44,7 @@ pub(in crate::linear::filter) fn new_stream(
     x0: &[f64],
     p0: &[f64],
 ) -> Result<Box<dyn Stream>> {
-    with_state_dims!(n, |d| by_form(d, form, m, k, x0, p0))
+    with_state_dims!(crate::core::isa::kernel(), n, |d| by_form(d, form, m, k, x0, p0))
 }
 
 fn by_form<D: Dims + std::fmt::Debug + 'static>(
