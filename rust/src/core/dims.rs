@@ -226,9 +226,12 @@ impl<const R: usize, const C: usize> Buf for [[f64; C]; R] {
 }
 
 /// The sizes [`with_dims!`] compiles, in words (for `kfast._kfast.kernel_info()`).
-#[cfg(all(feature = "python", not(kfast_dev_sizes)))]
+#[cfg(all(feature = "python", not(kfast_dev_sizes), not(feature = "unfused-sizes")))]
 pub(crate) const FIXED_SIZES: &str =
     "n <= 12 with m <= min(n, 4) in the fused loops (compile-time sizes; others, and the unfused loops, run-time)";
+#[cfg(all(feature = "python", not(kfast_dev_sizes), feature = "unfused-sizes"))]
+pub(crate) const FIXED_SIZES: &str =
+    "n <= 12 with m <= min(n, 4) in the fused and the unfused loops (compile-time sizes; others run-time)";
 #[cfg(all(feature = "python", kfast_dev_sizes))]
 pub(crate) const FIXED_SIZES: &str = "(1, 1), (2, 1), (4, 2), (5, 2), (9, 2) only (a kfast_dev_sizes build)";
 

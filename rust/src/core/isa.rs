@@ -63,12 +63,19 @@ impl Kernel {
     }
 
     /// Whether its loops are compiled for compile-time sizes (`with_dims!` gives run-time
-    /// sizes otherwise): on x86-64 only the AVX2 + FMA loops are.
+    /// sizes otherwise): on x86-64 only the AVX2 + FMA loops are, and with the
+    /// `unfused-sizes` feature the unfused ones too (one baseline instance serves both).
     #[inline(always)]
     pub(crate) fn fixed_sizes(self) -> bool {
-        cfg!(not(target_arch = "x86_64")) || self == Kernel::Avx2Fma
+        cfg!(not(target_arch = "x86_64"))
+            || self == Kernel::Avx2Fma
+            || (UNFUSED_SIZES && matches!(self, Kernel::Avx2 | Kernel::Baseline))
     }
 }
+
+/// Whether the unfused loops (x86-64 CPUs without FMA) have compile-time sizes too (the
+/// `unfused-sizes` feature).
+pub(crate) const UNFUSED_SIZES: bool = cfg!(feature = "unfused-sizes");
 
 /// 0: not read yet; 1: off; 2: on.
 static DETERMINISTIC: AtomicU8 = AtomicU8::new(0);
@@ -272,7 +279,11 @@ pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: imp
     #[cfg(target_arch = "x86_64")]
     {
         if D::FIXED {
-            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+            if !UNFUSED_SIZES {
+                unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+            }
+            // One instance for both unfused kernels: the same bits.
+            return D::Home::run_baseline(job);
         }
         if kernel == Kernel::Avx2 {
             // SAFETY: as the caller's.
@@ -323,7 +334,7 @@ pub(crate) fn run_out_of_line<D: Dims, R>(job: impl FnOnce() -> R) -> R {
             // SAFETY: checked above; compile-time sizes exist only on such CPUs.
             return unsafe { D::Home::run_avx2_fma(job) };
         }
-        if D::FIXED {
+        if D::FIXED && !UNFUSED_SIZES {
             unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
         }
     }

@@ -351,7 +351,7 @@ where
 {
     if fused {
         Box::new(Workspace::new(Fused(d), k, x0, p0))
-    } else if cfg!(target_arch = "x86_64") && !D::FIXED {
+    } else if cfg!(target_arch = "x86_64") && (!D::FIXED || crate::core::isa::UNFUSED_SIZES) {
         Box::new(Workspace::new(d, k, x0, p0))
     } else {
         unreachable!("separate multiply-adds run only with run-time sizes on x86-64")

@@ -137,8 +137,13 @@ impl Backward<'_> {
             // SAFETY: kernel() returns these only on CPUs with the instruction sets enabled.
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2Fma => unsafe { self.run_avx2_fma(Fused(d), x, p, p_lag1) },
+            // Compile-time sizes reach this only with the unfused-sizes feature, unfused: one
+            // baseline instance for both unfused kernels (the same bits).
             _ if cfg!(target_arch = "x86_64") && D::FIXED => {
-                unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64")
+                if !crate::core::isa::UNFUSED_SIZES {
+                    unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64")
+                }
+                self.run_loop(d, x, p, p_lag1)
             }
             Kernel::BaselineFma => self.run_loop(Fused(d), x, p, p_lag1),
             #[cfg(target_arch = "x86_64")]
