@@ -100,8 +100,8 @@ def seasonal(period: int, var: float, form: str = "dummy", harmonics: Optional[i
 
 
 def cycle(frequency: float, var: float, damping: float = 1.0, irregular: float = 0.0) -> LinearGaussian:
-    """The stochastic cycle [c, c*](t+1) = rho [[cos l, sin l], [-sin l, cos l]] [c, c*](t) +
-    noise, both noises of variance ``var``, signal c (statsmodels' ``cycle=True,
+    """The stochastic cycle ``[c, c*](t+1) = rho [[cos l, sin l], [-sin l, cos l]] [c, c*](t) +
+    noise``, both noises of variance ``var``, signal c (statsmodels' ``cycle=True,
     stochastic_cycle=True, damped_cycle=True`` with ``frequency.cycle`` = l in radians per step,
     ``damping.cycle`` = rho; Durbin & Koopman (2012) (3.13)). Period 2 pi / l."""
     lam = _finite("frequency", frequency)
