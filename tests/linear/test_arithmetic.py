@@ -55,27 +55,29 @@ def everything(n, m, seed=1):
     }
 
 
+def assert_same_bits(kernel, first, second, n, m):
+    """everything() in the loops `first` and in the loops `second` (None: the default)."""
+    kernel(first)
+    one = everything(n, m)
+    kernel(second)
+    other = everything(n, m)
+    for name in one:
+        np.testing.assert_array_equal(other[name], one[name], err_msg=name)
+
+
 @pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")
 @pytest.mark.parametrize("n, m", SIZES)
 def test_fused_loops_give_the_same_bits_with_every_instruction_set(kernel, n, m):
     kfast.set_deterministic(True)
     assert kfast.kernel_info()["instruction_set"] == "avx2+fma"
-    default = everything(n, m)
-    kernel("baseline+fma")  # run-time sizes, fma() of the C library
-    software = everything(n, m)
-    for name in default:
-        np.testing.assert_array_equal(software[name], default[name], err_msg=name)
+    # the AVX2 + FMA loops (compile-time sizes) against run-time sizes with the C library's fma()
+    assert_same_bits(kernel, None, "baseline+fma", n, m)
 
 
 @pytest.mark.skipif(not HAS_AVX2, reason="needs a CPU with AVX2 to compare with the baseline loops")
 @pytest.mark.parametrize("n, m", SIZES)
 def test_unfused_loops_give_the_same_bits_with_every_instruction_set(kernel, n, m):
-    kernel("baseline")
-    base = everything(n, m)
-    kernel("avx2")
-    avx2 = everything(n, m)
-    for name in base:
-        np.testing.assert_array_equal(avx2[name], base[name], err_msg=name)
+    assert_same_bits(kernel, "baseline", "avx2", n, m)
 
 
 @pytest.mark.skipif(not HAS_FMA, reason="needs a CPU with AVX2 and FMA")

@@ -117,26 +117,29 @@ def filter_batch(
         return _kfast.filter_batch(model._core, Y[a:b], part(x0, 2), part(P0, 3), u=None if u is None else part(u, 3),
                                    return_covs=return_covs, threads=threads, form=_update_form(form))
 
-    if not flag("progress", progress) or B < 2:
-        out = run(0, B)
-        P = out.get("P_filt")
-        if P is not None and out["shared"]:
-            P = np.broadcast_to(P, (B,) + P.shape)
-        return BatchResult(x_filt=out["x_filt"], P_filt=P, loglik=out["loglik"], shared_covariance=bool(out["shared"]))
-    edges = np.linspace(0, B, min(20, B) + 1).astype(int)
+    # With progress, the series go to the core in up to 20 chunks, one report each.
+    on = flag("progress", progress) and B >= 2
+    edges = np.linspace(0, B, (min(20, B) if on else 1) + 1).astype(int)
     parts = []
-    with Progress(True, B, "filter_batch") as bar:
+    with Progress(on, B, "filter_batch") as bar:
         for a, b in zip(edges[:-1], edges[1:]):
             parts.append(run(int(a), int(b)))
             bar.update(int(b - a))
+
+    def join(arrays: list) -> np.ndarray:
+        return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+
+    def per_series(p: dict) -> np.ndarray:
+        P = p["P_filt"]
+        return np.broadcast_to(P, (len(p["x_filt"]),) + P.shape) if p["shared"] else P
+
     shared = all(p["shared"] for p in parts)
     P = None
     if return_covs:
-        P = (np.broadcast_to(parts[0]["P_filt"], (B,) + parts[0]["P_filt"].shape) if shared else np.concatenate(
-            [np.broadcast_to(p["P_filt"], (len(p["x_filt"]),) + p["P_filt"].shape) if p["shared"] else p["P_filt"]
-             for p in parts]))
-    return BatchResult(x_filt=np.concatenate([p["x_filt"] for p in parts]), P_filt=P,
-                       loglik=np.concatenate([p["loglik"] for p in parts]), shared_covariance=shared)
+        P = np.broadcast_to(parts[0]["P_filt"], (B,) + parts[0]["P_filt"].shape) if shared else join(
+            [per_series(p) for p in parts])
+    return BatchResult(x_filt=join([p["x_filt"] for p in parts]), P_filt=P, loglik=join([p["loglik"] for p in parts]),
+                       shared_covariance=shared)
 
 
 def batch_arguments(

@@ -77,6 +77,16 @@ impl Kernel {
 /// `unfused-sizes` feature).
 pub(crate) const UNFUSED_SIZES: bool = cfg!(feature = "unfused-sizes");
 
+/// Where a loop of compile-time sizes would run for an instruction set it is not compiled
+/// for: [`Kernel::fixed_sizes`], which `with_dims!` follows, rules it out. Callers reach it
+/// only under a constant condition on the sizes (`D::FIXED`), which rustc prunes before
+/// code generation, so the loop it stands for is never compiled.
+#[cold]
+#[inline(never)]
+pub(crate) fn not_compiled() -> ! {
+    unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64 (Kernel::fixed_sizes)")
+}
+
 /// 0: not read yet; 1: off; 2: on.
 static DETERMINISTIC: AtomicU8 = AtomicU8::new(0);
 /// A forced kernel for tests and benchmarks (0: none; 1 + the `Kernel` in declaration order).
@@ -261,7 +271,7 @@ pub(crate) unsafe fn run_fused<D: Dims, R>(_sizes: D, kernel: Kernel, job: impl 
             return unsafe { D::Home::run_avx2_fma(job) };
         }
         if D::FIXED {
-            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+            not_compiled();
         }
     }
     let _ = kernel;
@@ -280,7 +290,7 @@ pub(crate) unsafe fn run_unfused<D: Dims, R>(_sizes: D, kernel: Kernel, job: imp
     {
         if D::FIXED {
             if !UNFUSED_SIZES {
-                unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+                not_compiled();
             }
             // One instance for both unfused kernels: the same bits.
             return D::Home::run_baseline(job);
@@ -335,7 +345,7 @@ pub(crate) fn run_out_of_line<D: Dims, R>(job: impl FnOnce() -> R) -> R {
             return unsafe { D::Home::run_avx2_fma(job) };
         }
         if D::FIXED && !UNFUSED_SIZES {
-            unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64");
+            not_compiled();
         }
     }
     D::Home::run_baseline(job)

@@ -354,7 +354,7 @@ where
     } else if cfg!(target_arch = "x86_64") && (!D::FIXED || crate::core::isa::UNFUSED_SIZES) {
         Box::new(Workspace::new(d, k, x0, p0))
     } else {
-        unreachable!("separate multiply-adds run only with run-time sizes on x86-64")
+        crate::core::isa::not_compiled()
     }
 }
 

@@ -141,7 +141,7 @@ impl Backward<'_> {
             // baseline instance for both unfused kernels (the same bits).
             _ if cfg!(target_arch = "x86_64") && D::FIXED => {
                 if !crate::core::isa::UNFUSED_SIZES {
-                    unreachable!("compile-time sizes run only the AVX2 + FMA loops on x86-64")
+                    crate::core::isa::not_compiled();
                 }
                 self.run_loop(d, x, p, p_lag1)
             }

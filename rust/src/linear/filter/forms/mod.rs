@@ -26,7 +26,8 @@
 /// `$kernel` has loops for compile-time sizes (`Kernel::fixed_sizes`), else to run-time sizes.
 macro_rules! with_state_dims {
     ($kernel:expr, $n:expr, |$d:ident| $body:expr) => {{
-        match (if $crate::core::isa::Kernel::fixed_sizes($kernel) { $n } else { 0 }) {
+        let n: usize = $n;
+        match (if $crate::core::isa::Kernel::fixed_sizes($kernel) { n } else { 0 }) {
             1 => with_state_dims!(@fixed 1, $d, $body),
             2 => with_state_dims!(@fixed 2, $d, $body),
             #[cfg(not(kfast_dev_sizes))]
@@ -47,7 +48,7 @@ macro_rules! with_state_dims {
             #[cfg(not(kfast_dev_sizes))]
             12 => with_state_dims!(@fixed 12, $d, $body),
             _ => {
-                let $d = Dyn { n: $n, m: 1 };
+                let $d = Dyn { n, m: 1 };
                 $body
             }
         }
