@@ -46,13 +46,23 @@ def case_for(seed):
 
 
 def f_tilde_condition(case):
-    """The largest condition number of F - N R^-1 H over the steps (F without N): the
-    information filter maps Y through its inverse, so its accuracy scales with it."""
+    """The largest condition number over the steps of the F - N R^-1 H that the time update
+    maps Y through (F without N), with N, R and H restricted to the step's observed components:
+    the information filter's accuracy scales with it, and a missing pattern can make one step's
+    far worse than the fully observed one (seed 65: 17 observed, 920 with y[6, 4] missing)."""
     F, H, R = (np.asarray(case.model[k]) for k in "FHR")
-    if "N" in case.model:
-        N = np.asarray(case.model["N"])
-        F = F - np.linalg.solve(R, N.swapaxes(-1, -2)).swapaxes(-1, -2) @ H
-    return float(np.max(np.linalg.cond(F)))
+    N = np.asarray(case.model["N"]) if "N" in case.model else None
+    worst = 0.0
+    for t, y_t in enumerate(np.asarray(case.y)):
+        at = [a[t] if a.ndim == 3 else a for a in (F, H, R)]
+        F_t, H_t, R_t = at
+        observed = ~np.isnan(y_t)
+        if N is not None and observed.any():
+            N_t = N[t] if N.ndim == 3 else N
+            gain = np.linalg.solve(R_t[np.ix_(observed, observed)], N_t[:, observed].T).T
+            F_t = F_t - gain @ H_t[observed]
+        worst = max(worst, float(np.linalg.cond(F_t)))
+    return worst
 
 
 def information_seeds(per_option=2, max_condition=100.0):

@@ -59,18 +59,55 @@ macro_rules! runners {
     };
 }
 
-/// Run-time sizes.
+/// Run-time sizes. Each instruction set's runners are free functions of a module of their
+/// own, so that the run-time loops (~2 MB of code) spread over three codegen units: in one
+/// they made the largest unit, optimized on one core while the other waited
+/// (docs/decisions.md, "The first install on 2 cores").
 pub(crate) mod dynamic {
     pub(crate) struct Home;
 
     impl super::Home for Home {
-        runners!(baseline);
-        runners!(fused);
+        #[inline(always)]
+        fn run_baseline<R>(job: impl FnOnce() -> R) -> R {
+            baseline::run(job)
+        }
 
         #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
+        unsafe fn run_unfused_avx2<R>(job: impl FnOnce() -> R) -> R {
+            // SAFETY: as the caller's.
+            unsafe { unfused_avx2::run(job) }
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
+        unsafe fn run_avx2_fma<R>(job: impl FnOnce() -> R) -> R {
+            // SAFETY: as the caller's.
+            unsafe { avx2_fma::run(job) }
+        }
+    }
+
+    mod baseline {
+        #[inline(never)]
+        pub(super) fn run<R>(job: impl FnOnce() -> R) -> R {
+            job()
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    mod unfused_avx2 {
         #[target_feature(enable = "avx2")]
         #[inline(never)]
-        unsafe fn run_unfused_avx2<R>(job: impl FnOnce() -> R) -> R {
+        pub(super) unsafe fn run<R>(job: impl FnOnce() -> R) -> R {
+            job()
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    mod avx2_fma {
+        #[target_feature(enable = "avx2,fma")]
+        #[inline(never)]
+        pub(super) unsafe fn run<R>(job: impl FnOnce() -> R) -> R {
             job()
         }
     }
