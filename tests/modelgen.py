@@ -90,7 +90,8 @@ def random_case(
     return Case(model=model, y=y, x0=x0, P0=P0, u=u, info=info)
 
 
-def _at(M, t):
+def at(M, t):
+    """The matrix in force at step t: M itself, or M[t] for a per-step stack."""
     return M[t] if M.ndim == 3 else M
 
 
@@ -101,14 +102,14 @@ def simulate(rng, model, x0, P0, T, u=None):
     x = rng.multivariate_normal(x0, P0)
     y = np.zeros((T, m))
     for t in range(T):
-        Q, R = _at(model["Q"], t), _at(model["R"], t)
-        N = _at(model["N"], t) if "N" in model else np.zeros((n, m))
+        Q, R = at(model["Q"], t), at(model["R"], t)
+        N = at(model["N"], t) if "N" in model else np.zeros((n, m))
         J = np.block([[Q, N], [N.T, R]])
         wv = rng.multivariate_normal(np.zeros(n + m), J)
-        y[t] = _at(model["H"], t) @ x + wv[n:]
-        x_next = _at(model["F"], t) @ x + wv[:n]
+        y[t] = at(model["H"], t) @ x + wv[n:]
+        x_next = at(model["F"], t) @ x + wv[:n]
         if u is not None:
-            y[t] += _at(model["D"], t) @ u[t]
-            x_next += _at(model["B"], t) @ u[t]
+            y[t] += at(model["D"], t) @ u[t]
+            x_next += at(model["B"], t) @ u[t]
         x = x_next
     return y

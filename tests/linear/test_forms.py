@@ -13,7 +13,7 @@ import pytest
 
 import kfast
 from kfast.reference.forms import information_filter, sequential_filter, square_root_filter, ud_filter
-from modelgen import random_case
+from modelgen import at, random_case
 
 FORMS = ["sqrt", "ud", "information", "sequential"]
 REFERENCES = {
@@ -50,16 +50,13 @@ def f_tilde_condition(case):
     maps Y through (F without N), with N, R and H restricted to the step's observed components:
     the information filter's accuracy scales with it, and a missing pattern can make one step's
     far worse than the fully observed one (seed 65: 17 observed, 920 with y[6, 4] missing)."""
-    F, H, R = (np.asarray(case.model[k]) for k in "FHR")
-    N = np.asarray(case.model["N"]) if "N" in case.model else None
+    model = {k: np.asarray(v) for k, v in case.model.items()}
     worst = 0.0
     for t, y_t in enumerate(np.asarray(case.y)):
-        at = [a[t] if a.ndim == 3 else a for a in (F, H, R)]
-        F_t, H_t, R_t = at
+        F_t, H_t, R_t = (at(model[k], t) for k in "FHR")
         observed = ~np.isnan(y_t)
-        if N is not None and observed.any():
-            N_t = N[t] if N.ndim == 3 else N
-            gain = np.linalg.solve(R_t[np.ix_(observed, observed)], N_t[:, observed].T).T
+        if "N" in model and observed.any():
+            gain = np.linalg.solve(R_t[np.ix_(observed, observed)], at(model["N"], t)[:, observed].T).T
             F_t = F_t - gain @ H_t[observed]
         worst = max(worst, float(np.linalg.cond(F_t)))
     return worst

@@ -42,18 +42,20 @@ pub(crate) trait FixedHome {
     type Home: Home;
 }
 
-macro_rules! runners {
-    (baseline) => {
+/// A runner: `job` in a function of its own (not inlined), for the baseline instruction set
+/// or, on x86-64, with the given target features.
+macro_rules! runner {
+    ($vis:vis fn $name:ident) => {
         #[inline(never)]
-        fn run_baseline<R>(job: impl FnOnce() -> R) -> R {
+        $vis fn $name<R>(job: impl FnOnce() -> R) -> R {
             job()
         }
     };
-    (fused) => {
+    ($vis:vis unsafe fn $name:ident, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2,fma")]
+        #[target_feature(enable = $features)]
         #[inline(never)]
-        unsafe fn run_avx2_fma<R>(job: impl FnOnce() -> R) -> R {
+        $vis unsafe fn $name<R>(job: impl FnOnce() -> R) -> R {
             job()
         }
     };
@@ -88,28 +90,15 @@ pub(crate) mod dynamic {
     }
 
     mod baseline {
-        #[inline(never)]
-        pub(super) fn run<R>(job: impl FnOnce() -> R) -> R {
-            job()
-        }
+        runner!(pub(super) fn run);
     }
 
-    #[cfg(target_arch = "x86_64")]
     mod unfused_avx2 {
-        #[target_feature(enable = "avx2")]
-        #[inline(never)]
-        pub(super) unsafe fn run<R>(job: impl FnOnce() -> R) -> R {
-            job()
-        }
+        runner!(pub(super) unsafe fn run, "avx2");
     }
 
-    #[cfg(target_arch = "x86_64")]
     mod avx2_fma {
-        #[target_feature(enable = "avx2,fma")]
-        #[inline(never)]
-        pub(super) unsafe fn run<R>(job: impl FnOnce() -> R) -> R {
-            job()
-        }
+        runner!(pub(super) unsafe fn run, "avx2,fma");
     }
 }
 
@@ -119,8 +108,8 @@ macro_rules! fixed_homes {
             pub(crate) struct Home;
 
             impl super::Home for Home {
-                runners!(baseline);
-                runners!(fused);
+                runner!(fn run_baseline);
+                runner!(unsafe fn run_avx2_fma, "avx2,fma");
 
                 #[cfg(target_arch = "x86_64")]
                 #[inline(always)]
