@@ -5,6 +5,8 @@
 
 use faer::Mat;
 
+use crate::core::isa::run_wide;
+
 /// `A = Z T Z'`.
 #[derive(Debug, Clone)]
 pub(crate) struct RealSchur {
@@ -79,11 +81,12 @@ impl Square {
     }
 
     /// Rows `r0 ..` (as many as `v`) of columns `cols`: h ← (I − β v v') h.
+    #[inline(always)]
     fn reflect_rows(&mut self, v: &[f64], beta: f64, r0: usize, cols: std::ops::Range<usize>) {
         let n = self.n;
         for j in cols {
             let col = &mut self.a[j * n + r0..j * n + r0 + v.len()];
-            let s = beta * col.iter().zip(v).map(|(c, va)| c * va).sum::<f64>();
+            let s = beta * dot(col, v);
             for (c, va) in col.iter_mut().zip(v) {
                 *c -= s * va;
             }
@@ -91,6 +94,7 @@ impl Square {
     }
 
     /// Columns `c0 ..` (as many as `v`) of rows `rows`: h ← h (I − β v v').
+    #[inline(always)]
     fn reflect_cols(&mut self, v: &[f64], beta: f64, c0: usize, rows: std::ops::Range<usize>) {
         let n = self.n;
         let w = &mut self.work[rows.clone()];
@@ -109,6 +113,52 @@ impl Square {
             }
         }
     }
+
+    /// [`reflect_rows`](Self::reflect_rows) for a short reflector of the QR sweeps (length 2
+    /// or 3) in one pass per column.
+    #[inline(always)]
+    fn reflect_rows_short<const L: usize>(&mut self, v: [f64; L], beta: f64, r0: usize, cols: std::ops::Range<usize>) {
+        let n = self.n;
+        let bv = v.map(|x| beta * x);
+        for j in cols {
+            let col = &mut self.a[j * n + r0..j * n + r0 + L];
+            let s: f64 = col.iter().zip(&v).map(|(c, va)| c * va).sum();
+            for (c, b) in col.iter_mut().zip(&bv) {
+                *c -= s * b;
+            }
+        }
+    }
+
+    /// [`reflect_cols`](Self::reflect_cols) for a short reflector in one pass over the rows,
+    /// where the general one passes twice through a work buffer: the sweeps' column
+    /// reflections vectorize across the rows.
+    #[inline(always)]
+    fn reflect_cols_short<const L: usize>(&mut self, v: [f64; L], beta: f64, c0: usize, rows: std::ops::Range<usize>) {
+        let n = self.n;
+        let bv = v.map(|x| beta * x);
+        let block = &mut self.a[c0 * n..(c0 + L) * n];
+        let mut cols: [&mut [f64]; L] = split_columns(block, n).map(|c| &mut c[rows.clone()]);
+        for i in 0..rows.len() {
+            let mut s = 0.0;
+            for (c, va) in cols.iter().zip(&v) {
+                s += c[i] * va;
+            }
+            for (c, b) in cols.iter_mut().zip(&bv) {
+                c[i] -= s * b;
+            }
+        }
+    }
+}
+
+/// The `L` columns of a column-major block of height `n`, as separate slices.
+#[inline(always)]
+fn split_columns<const L: usize>(block: &mut [f64], n: usize) -> [&mut [f64]; L] {
+    let mut rest = block;
+    std::array::from_fn(|_| {
+        let (col, tail) = std::mem::take(&mut rest).split_at_mut(n);
+        rest = tail;
+        col
+    })
 }
 
 impl std::ops::Index<(usize, usize)> for Square {
@@ -124,7 +174,28 @@ impl std::ops::IndexMut<(usize, usize)> for Square {
     }
 }
 
+/// `a · b` with eight interleaved partial sums, added in a fixed order (the same bits on every
+/// CPU): a sequential sum is one dependent addition per entry, which made the Hessenberg
+/// reduction's row reflections half of the eigenvalue solve at n = 100.
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let k = a.len().min(b.len());
+    let (a, b) = (&a[..k], &b[..k]);
+    let mut acc = [0.0; 8];
+    for (ca, cb) in a.chunks_exact(8).zip(b.chunks_exact(8)) {
+        for l in 0..8 {
+            acc[l] += ca[l] * cb[l];
+        }
+    }
+    let mut s = ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]));
+    for i in k - k % 8..k {
+        s += a[i] * b[i];
+    }
+    s
+}
+
 /// Householder vector `v` (v[0] = 1 implied by scaling) and β with (I − β v v') x = α e1.
+#[inline(always)]
 fn householder(x: &[f64], v: &mut [f64]) -> f64 {
     let norm = x.iter().map(|a| a * a).sum::<f64>().sqrt();
     v.copy_from_slice(x);
@@ -146,24 +217,35 @@ fn householder(x: &[f64], v: &mut [f64]) -> f64 {
 pub(crate) fn real_schur(a: &Mat<f64>) -> Result<RealSchur, String> {
     let mut h = Square::from_mat(a);
     let mut z = Square::identity(a.nrows());
-    reduce(&mut h, Some(&mut z))?;
+    run_wide(
+        #[inline(always)]
+        || reduce(&mut h, Some(&mut z)),
+    )?;
     Ok(RealSchur { t: h.to_mat(), z: z.to_mat() })
 }
 
 /// Eigenvalues (re, im) of the square `a`, without the Schur vectors: the matrix is balanced
 /// first (Parlett & Reinsch, scaling by powers of 2, exact in floating point) and the QR steps
 /// touch only the active window (LAPACK's `dhseqr` with job "E"). About 3× cheaper than
-/// [`real_schur`] and than faer's `eigenvalues` up to n ≈ 50 (docs/decisions.md).
+/// [`real_schur`], and 2–3× faster than faer's `eigenvalues` at n = 20–100 (Zen 3;
+/// docs/decisions.md). Both run with AVX2 where the CPU has it ([`run_wide`]: separate
+/// multiplies and adds, the same bits on every CPU).
 pub(crate) fn eigenvalues(a: &Mat<f64>) -> Result<Vec<(f64, f64)>, String> {
     let mut h = Square::from_mat(a);
-    balance(&mut h);
-    reduce(&mut h, None)?;
+    run_wide(
+        #[inline(always)]
+        || {
+            balance(&mut h);
+            reduce(&mut h, None)
+        },
+    )?;
     Ok(RealSchur { t: h.to_mat(), z: Mat::new() }.eigenvalues())
 }
 
 /// Parlett–Reinsch balancing: D⁻¹ A D with D diagonal powers of 2 chosen so that each row and
 /// column have comparable norms; the eigenvalues are unchanged and their computed values much
 /// less sensitive (companion matrices above all).
+#[inline(always)]
 fn balance(a: &mut Square) {
     let n = a.n;
     let radix = 2.0_f64;
@@ -203,6 +285,7 @@ fn balance(a: &mut Square) {
 /// Hessenberg reduction and Francis QR iterations in place: `h` becomes T. With `z`, the
 /// transformations are accumulated and T is kept complete; without, only the active window
 /// is updated (T's eigenvalue blocks are right, the rest of T is not).
+#[inline(always)]
 fn reduce(h: &mut Square, mut z: Option<&mut Square>) -> Result<(), String> {
     let n = h.n;
     if (0..n).any(|j| (0..n).any(|i| !h[(i, j)].is_finite())) {
@@ -274,6 +357,7 @@ fn reduce(h: &mut Square, mut z: Option<&mut Square>) -> Result<(), String> {
 /// One implicit double-shift QR step on the window [lo, hi] with shifts of sum `s` and
 /// product `t`. With `z`, T is kept complete (rows right of and columns above the window
 /// updated) and the reflections accumulated; without, only the window is touched.
+#[inline(always)]
 fn francis_step(h: &mut Square, mut z: Option<&mut Square>, lo: usize, hi: usize, s: f64, t: f64) {
     let n = h.n;
     let (row_end, col_start) = if z.is_some() { (n, 0) } else { (hi + 1, lo) };
@@ -285,11 +369,11 @@ fn francis_step(h: &mut Square, mut z: Option<&mut Square>, lo: usize, hi: usize
         let beta = householder(&[x, y, w], &mut v);
         let q = if k > lo { k - 1 } else { lo };
         if beta != 0.0 {
-            h.reflect_rows(&v, beta, k, q..row_end);
+            h.reflect_rows_short(v, beta, k, q..row_end);
             let r = (k + 3).min(hi);
-            h.reflect_cols(&v, beta, k, col_start..r + 1);
+            h.reflect_cols_short(v, beta, k, col_start..r + 1);
             if let Some(z) = z.as_deref_mut() {
-                z.reflect_cols(&v, beta, k, 0..n);
+                z.reflect_cols_short(v, beta, k, 0..n);
             }
         }
         if k > lo {
@@ -305,10 +389,10 @@ fn francis_step(h: &mut Square, mut z: Option<&mut Square>, lo: usize, hi: usize
     let mut v2 = [0.0; 2];
     let beta = householder(&[x, y], &mut v2);
     if beta != 0.0 {
-        h.reflect_rows(&v2, beta, hi - 1, hi - 2..row_end);
-        h.reflect_cols(&v2, beta, hi - 1, col_start..hi + 1);
+        h.reflect_rows_short(v2, beta, hi - 1, hi - 2..row_end);
+        h.reflect_cols_short(v2, beta, hi - 1, col_start..hi + 1);
         if let Some(z) = z {
-            z.reflect_cols(&v2, beta, hi - 1, 0..n);
+            z.reflect_cols_short(v2, beta, hi - 1, 0..n);
         }
     }
     h[(hi, hi - 2)] = 0.0;

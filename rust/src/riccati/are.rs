@@ -98,7 +98,7 @@ impl RiccatiSolution {
     }
 
     /// Eigenvalues (re, im) of [`closed_loop`](Self::closed_loop), computed on the first call
-    /// (faer's Hessenberg QR, O(n³)) unless the stabilizing check already needed them: for
+    /// (Francis QR, `core::schur`, O(n³)) unless the stabilizing check already needed them: for
     /// the DARE a Lyapunov inequality or a power of the closed loop with norm below 1/2
     /// usually shows it stable for less (docs/algorithms.md, "Stabilizing solution").
     pub fn closed_loop_eigenvalues(&self) -> Result<&[(f64, f64)]> {
