@@ -267,7 +267,7 @@ pub(crate) fn mirror_upper(c: &mut [f64], n: usize) {
 /// `a · b` with four interleaved partial sums: the sum's dependency chain is a quarter as long
 /// and the products vectorize (a mean-only filter step at n = 20 is mostly such sums).
 #[inline(always)]
-fn dot<D: Dims>(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot<D: Dims>(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
     let chunks = k / 4;

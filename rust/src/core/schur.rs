@@ -5,6 +5,8 @@
 
 use faer::Mat;
 
+use crate::core::dense::dot;
+use crate::core::dims::Dyn;
 use crate::core::isa::run_wide;
 
 /// `A = Z T Z'`.
@@ -86,7 +88,9 @@ impl Square {
         let n = self.n;
         for j in cols {
             let col = &mut self.a[j * n + r0..j * n + r0 + v.len()];
-            let s = beta * dot(col, v);
+            // Four partial sums: a sequential sum, one dependent addition per entry, made
+            // these reflections half of the eigenvalue solve at n = 100.
+            let s = beta * dot::<Dyn>(col, v);
             for (c, va) in col.iter_mut().zip(v) {
                 *c -= s * va;
             }
@@ -172,26 +176,6 @@ impl std::ops::IndexMut<(usize, usize)> for Square {
     fn index_mut(&mut self, (i, j): (usize, usize)) -> &mut f64 {
         &mut self.a[i + j * self.n]
     }
-}
-
-/// `a · b` with eight interleaved partial sums, added in a fixed order (the same bits on every
-/// CPU): a sequential sum is one dependent addition per entry, which made the Hessenberg
-/// reduction's row reflections half of the eigenvalue solve at n = 100.
-#[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let k = a.len().min(b.len());
-    let (a, b) = (&a[..k], &b[..k]);
-    let mut acc = [0.0; 8];
-    for (ca, cb) in a.chunks_exact(8).zip(b.chunks_exact(8)) {
-        for l in 0..8 {
-            acc[l] += ca[l] * cb[l];
-        }
-    }
-    let mut s = ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]));
-    for i in k - k % 8..k {
-        s += a[i] * b[i];
-    }
-    s
 }
 
 /// Householder vector `v` (v[0] = 1 implied by scaling) and β with (I − β v v') x = α e1.
