@@ -278,15 +278,27 @@ impl Cloud {
     /// The weighted mean and covariance (two passes; one triangle, mirrored) into `mean` and
     /// `cov`; returns the effective sample size (Σ W)² / Σ W².
     pub(crate) fn moments(&mut self, mean: &mut [f64], cov: &mut [f64]) -> f64 {
+        // a particle's loops unrolled for the small state sizes (the same sums in the same order)
+        match self.n {
+            1 => self.moments_sized(Known::<1>, mean, cov),
+            2 => self.moments_sized(Known::<2>, mean, cov),
+            3 => self.moments_sized(Known::<3>, mean, cov),
+            4 => self.moments_sized(Known::<4>, mean, cov),
+            n => self.moments_sized(n, mean, cov),
+        }
+    }
+
+    fn moments_sized(&mut self, size: impl StateSize, mean: &mut [f64], cov: &mut [f64]) -> f64 {
         let (n, blocks) = (self.n, self.blocks());
         let width = n * n + n + 2;
         let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
         sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
+            let n = size.get();
             lane_sums(w.len(), &mut part[..n + 2], |i, sums| {
                 let wi = w[i];
                 sums[0] += wi;
                 sums[1] += wi * wi;
-                for (s, &v) in sums[2..].iter_mut().zip(&x[i * n..][..n]) {
+                for (s, &v) in sums[2..n + 2].iter_mut().zip(&x[i * n..][..n]) {
                     *s += wi * v;
                 }
             });
@@ -302,6 +314,7 @@ impl Cloud {
         let centre = &*mean;
         let sums = self.x.par_chunks(BLOCK * n).zip(self.w.par_chunks(BLOCK));
         sums.zip(self.partials.par_chunks_mut(width)).for_each(|((x, w), part)| {
+            let n = size.get();
             lane_sums(w.len(), &mut part[..n * n], |i, upper| {
                 let xi = &x[i * n..][..n];
                 for a in 0..n {
@@ -356,9 +369,13 @@ impl Cloud {
             _ => next.chunks_exact_mut(n).zip(ancestors).for_each(|(row, &a)| row.copy_from_slice(&x[a * n..][..n])),
         });
         std::mem::swap(&mut self.x, &mut self.next);
-        self.log_w.fill(-(count as f64).ln());
+        let (log_uniform, uniform) = (-(count as f64).ln(), 1.0 / count as f64);
+        let blocks = self.log_w.par_chunks_mut(BLOCK).zip(self.w.par_chunks_mut(BLOCK));
+        blocks.for_each(|(log_w, w)| {
+            log_w.fill(log_uniform);
+            w.fill(uniform);
+        });
         self.log_w_offset = 0.0;
-        self.w.fill(1.0 / count as f64);
         if let Some(c) = self.options.regularize {
             self.jitter(t, c);
         }
@@ -422,11 +439,12 @@ impl Cloud {
         let blocks = self.noise.par_chunks_mut(BLOCK * r).zip(self.normals.par_iter_mut());
         blocks.enumerate().for_each(|(b, (noise, scratch))| {
             stream.normals((b * BLOCK * r) as u64, noise, scratch);
-            for wi in noise.chunks_exact_mut(r) {
-                // wi = L zi in place: row a of L reads z up to a, so go from the last row up
-                for a in (0..r).rev() {
-                    wi[a] = lower_times(l_q, r, a, wi);
-                }
+            match r {
+                1 => noise.iter_mut().for_each(|v| *v *= l_q[0]),
+                2 => correlate(Known::<2>, l_q, noise),
+                3 => correlate(Known::<3>, l_q, noise),
+                4 => correlate(Known::<4>, l_q, noise),
+                r => correlate(r, l_q, noise),
             }
         });
         if matches!(entry, NoiseEntry::Input) {
@@ -495,6 +513,29 @@ impl Cloud {
     }
 }
 
+/// A state (or noise) size known at compile time ([`Known`]) or at run time (`usize`): the
+/// loops over a particle's numbers unroll, and their sums stay in registers, for the first.
+trait StateSize: Copy + Send + Sync {
+    fn get(self) -> usize;
+}
+
+impl StateSize for usize {
+    #[inline(always)]
+    fn get(self) -> usize {
+        self
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Known<const N: usize>;
+
+impl<const N: usize> StateSize for Known<N> {
+    #[inline(always)]
+    fn get(self) -> usize {
+        N
+    }
+}
+
 /// `w[i] = exp(log_w[i] − top)` (all ≤ 0) and their sum.
 #[inline(always)]
 fn exp_and_sum(w: &mut [f64], log_w: &[f64], top: f64) -> f64 {
@@ -529,6 +570,18 @@ fn lane_sums(count: usize, sums: &mut [f64], add: impl Fn(usize, &mut [f64])) {
     }
     for (k, s) in sums.iter_mut().enumerate() {
         *s = (lanes[0][k] + lanes[1][k]) + (lanes[2][k] + lanes[3][k]);
+    }
+}
+
+/// zⁱ ← L zⁱ in place for the rows zⁱ of `z` (L lower triangular, size × size).
+#[inline(always)]
+fn correlate(size: impl StateSize, l: &[f64], z: &mut [f64]) {
+    let size = size.get();
+    for zi in z.chunks_exact_mut(size) {
+        // row a of L reads z up to a, so go from the last row up
+        for a in (0..size).rev() {
+            zi[a] = lower_times(l, size, a, zi);
+        }
     }
 }
 

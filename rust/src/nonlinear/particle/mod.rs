@@ -10,6 +10,7 @@ mod cloud;
 mod custom;
 mod exp;
 mod filter;
+mod log;
 mod random;
 mod resample;
 mod streaming;

@@ -14,6 +14,7 @@
 //! 1988: relative error about 1e−16): one uniform per normal, so the number of draws per
 //! particle is fixed and a particle's noise is addressed by its index.
 
+use super::log::ln_positive;
 use crate::core::isa::run_wide;
 
 /// The golden-ratio increment of SplitMix64.
@@ -85,15 +86,16 @@ impl Stream {
 pub(crate) struct NormalScratch {
     uniforms: Vec<f64>,
     tails: Vec<u32>,
+    tail_values: Vec<f64>,
 }
 
 impl Stream {
     /// `out[k]` = draw `first + k` as a standard normal, the same numbers as
-    /// [`normal`](Self::normal), many at a time: the uniforms and the central rational
-    /// function for all of them in vector registers, then the tails (15% of the draws) one by
-    /// one, so that no branch depends on a random number.
+    /// [`normal`](Self::normal), many at a time, so that no branch depends on a random
+    /// number: the uniforms and the central rational function for all of them in vector
+    /// registers, then the tails (15% of the draws) gathered and done in vector registers too.
     pub(crate) fn normals(self, first: u64, out: &mut [f64], scratch: &mut NormalScratch) {
-        let NormalScratch { uniforms, tails } = scratch;
+        let NormalScratch { uniforms, tails, tail_values } = scratch;
         uniforms.resize(out.len(), 0.0);
         // in AVX2 where the CPU has it (the same bits: no FMA)
         run_wide(
@@ -107,8 +109,14 @@ impl Stream {
             tails[count] = k as u32;
             count += usize::from((p - 0.5).abs() > 0.425);
         }
-        for &k in &tails[..count] {
-            out[k as usize] = normal_quantile(uniforms[k as usize]);
+        tail_values.clear();
+        tail_values.extend(tails[..count].iter().map(|&k| uniforms[k as usize]));
+        run_wide(
+            #[inline(always)]
+            || tail_values.iter_mut().for_each(|v| *v = tail_quantile(*v)),
+        );
+        for (&k, &z) in tails[..count].iter().zip(tail_values.iter()) {
+            out[k as usize] = z;
         }
     }
 
@@ -129,17 +137,27 @@ impl Stream {
 /// The standard normal quantile Φ⁻¹(p) for p in (0, 1): Wichura (1988), AS 241 PPND16 —
 /// rational approximations in the centre (|p − ½| ≤ 0.425), in the tails up to
 /// √(−log min(p, 1 − p)) ≤ 5 and beyond.
-#[inline(always)]
-pub(crate) fn normal_quantile(p: f64) -> f64 {
+#[cfg(test)]
+fn normal_quantile(p: f64) -> f64 {
     let q = p - 0.5;
     if q.abs() <= 0.425 {
         let r = 0.180625 - q * q;
         return q * ratio(&CENTRE_NUM, &CENTRE_DEN, r);
     }
-    let tail = if q < 0.0 { p } else { 1.0 - p };
-    let r = (-tail.ln()).sqrt();
-    let value = if r <= 5.0 { ratio(&NEAR_NUM, &NEAR_DEN, r - 1.6) } else { ratio(&FAR_NUM, &FAR_DEN, r - 5.0) };
-    if q < 0.0 {
+    tail_quantile(p)
+}
+
+/// Φ⁻¹(p) for |p − ½| > 0.425, without a branch (both of AS 241's tail approximations,
+/// the one that applies chosen), the logarithm our own (`log`) so that it vectorizes.
+#[inline(always)]
+fn tail_quantile(p: f64) -> f64 {
+    let lower = p < 0.5;
+    let tail = if lower { p } else { 1.0 - p };
+    let r = (-ln_positive(tail)).sqrt();
+    let near = ratio(&NEAR_NUM, &NEAR_DEN, r - 1.6);
+    let far = ratio(&FAR_NUM, &FAR_DEN, r - 5.0);
+    let value = if r <= 5.0 { near } else { far };
+    if lower {
         -value
     } else {
         value

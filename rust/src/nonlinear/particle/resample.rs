@@ -69,10 +69,11 @@ pub(crate) fn resample(scheme: Resampling, w: &[f64], stream: Stream, scratch: &
             u.resize(draws, 0.0);
             let u0 = stream.uniform(0);
             u.par_chunks_mut(BLOCK).enumerate().for_each(|(b, u)| {
-                for (i, v) in u.iter_mut().enumerate() {
-                    let k = b * BLOCK + i;
-                    let offset = if scheme == Resampling::Systematic { u0 } else { stream.uniform(k as u64) };
-                    *v = (k as f64 + offset) / nf;
+                let ks = (b * BLOCK..).zip(u.iter_mut());
+                // two loops, so that the systematic one computes no draw per k
+                match scheme {
+                    Resampling::Systematic => ks.for_each(|(k, v)| *v = (k as f64 + u0) / nf),
+                    _ => ks.for_each(|(k, v)| *v = (k as f64 + stream.uniform(k as u64)) / nf),
                 }
             });
         }
