@@ -11,8 +11,8 @@
 
 /// log 2 = LN2_HI + LN2_LO, LN2_HI with its low 32 bits zero (fdlibm's split, by its bits:
 /// 6.93147180369123816490e-01 and 1.90821492927058770002e-10).
-const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
-const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
+pub(super) const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
+pub(super) const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
 /// 1.5 × 2⁵²: adding it rounds to an integer held in the low mantissa bits.
 const ROUNDER: f64 = 6_755_399_441_055_744.0;
 
@@ -47,10 +47,11 @@ pub(crate) fn exp_nonpositive(x: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn ulps(a: f64, b: f64) -> u64 {
+    /// The distance of `a` from `b` in units in the last place.
+    pub(in super::super) fn ulps(a: f64, b: f64) -> u64 {
         (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs()
     }
 

@@ -7,9 +7,8 @@
 //! (tested against `f64::ln`). The exponent and mantissa come from the bits, without a branch
 //! and without a float–integer conversion (which AVX2 lacks).
 
-/// log 2 = LN2_HI + LN2_LO, LN2_HI with its low 32 bits zero (fdlibm's split, by its bits).
-const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
-const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
+use super::exp::{LN2_HI, LN2_LO};
+
 /// fdlibm's Lg1..Lg7, by their bits.
 const LG: [f64; 7] = [
     f64::from_bits(0x3FE5_5555_5555_5593),
@@ -48,11 +47,8 @@ pub(crate) fn ln_positive(x: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::exp::tests::ulps;
     use super::*;
-
-    fn ulps(a: f64, b: f64) -> u64 {
-        (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs()
-    }
 
     #[test]
     fn agrees_with_the_library_log() {
